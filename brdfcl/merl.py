@@ -1,0 +1,129 @@
+"""MERL `.binary` reading and writing (SPEC section 2).
+
+File layout: three little-endian int32 ``90 90 180``, then ``3 * 1,458,000``
+little-endian float64, all red, then all green, then all blue.  Cell index
+``phi_d + 180 * (theta_d + 90 * theta_h)``.  Stored value times the channel
+scale is the BRDF.  Negative, NaN and inf values mark missing cells.
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+N_TH, N_TD, N_PD = 90, 90, 180
+N_CELLS = N_TH * N_TD * N_PD
+SCALE = np.array([1.0 / 1500.0, 1.15 / 1500.0, 1.66 / 1500.0])
+HEADER = np.array([N_TH, N_TD, N_PD], dtype="<i4")
+FILE_SIZE = HEADER.nbytes + 3 * N_CELLS * 8
+CHANNELS = ("r", "g", "b")
+
+
+class MerlError(ValueError):
+    """A MERL file that cannot be used; the message names the file and the problem."""
+
+
+@dataclass
+class MerlTable:
+    """One measured material as stored: numbers (3, N_CELLS), NaN where missing.
+
+    ``stored`` keeps the file's own numbers (before the channel scale) so that
+    writing the table back gives the same bytes; ``brdf()`` applies the scale."""
+
+    name: str
+    path: str | None
+    stored: np.ndarray        # (3, N_CELLS) float64, NaN = missing
+    n_missing: int            # cells missing in at least one channel
+
+    @property
+    def valid(self) -> np.ndarray:
+        return np.isfinite(self.stored).all(axis=0)
+
+    def brdf(self, dtype=np.float64) -> np.ndarray:
+        """BRDF values (3, N_CELLS) in 1/sr, NaN where missing."""
+        out = self.stored.astype(dtype)
+        out *= SCALE.astype(dtype)[:, None]
+        return out
+
+
+def material_name(path) -> str:
+    return Path(path).name[: -len(".binary")] if str(path).endswith(".binary") else Path(path).stem
+
+
+def read_merl(path) -> MerlTable:
+    """Read a MERL file, validating header and size; missing cells become NaN.
+
+    Holds exactly one float64 copy of the file's numbers."""
+    path = os.fspath(path)
+    try:
+        size = os.path.getsize(path)
+        with open(path, "rb") as f:
+            head = f.read(HEADER.nbytes)
+            if len(head) < HEADER.nbytes:
+                raise MerlError(f"{path}: not a MERL file: {size} bytes, shorter than the 12-byte header")
+            dims = np.frombuffer(head, dtype="<i4")
+            if not np.array_equal(dims, HEADER):
+                raise MerlError(f"{path}: wrong header {tuple(int(d) for d in dims)}, "
+                                f"expected dimensions (90, 90, 180)")
+            if size != FILE_SIZE:
+                raise MerlError(f"{path}: wrong size {size} bytes, expected {FILE_SIZE} "
+                                f"(header + 3 x {N_CELLS} float64); file truncated or padded")
+            raw = np.fromfile(f, dtype="<f8", count=3 * N_CELLS)
+    except OSError as e:
+        raise MerlError(f"{path}: cannot read: {e.strerror or e}") from None
+    if raw.size != 3 * N_CELLS:
+        raise MerlError(f"{path}: file changed while reading ({raw.size} values read)")
+    raw = raw.reshape(3, N_CELLS)
+    with np.errstate(invalid="ignore"):
+        bad = ~(raw >= 0)                 # negative or NaN
+    bad |= np.isinf(raw)
+    raw[bad] = np.nan
+    n_missing = int(bad.any(axis=0).sum())
+    if n_missing == N_CELLS:
+        raise MerlError(f"{path}: every cell is missing (all values negative, NaN or inf)")
+    return MerlTable(material_name(path), path, raw, n_missing)
+
+
+def write_merl(path, table) -> None:
+    """Write a MerlTable, or a BRDF array (3, N_CELLS) in 1/sr, as a MERL file.
+
+    Missing (NaN) cells are written as -1.  Written atomically (temporary file,
+    then rename), so a reader never sees half a file."""
+    path = os.fspath(path)
+    if isinstance(table, MerlTable):
+        stored = table.stored.copy()
+    else:
+        brdf = np.asarray(table, dtype=np.float64)
+        if brdf.shape != (3, N_CELLS):
+            raise ValueError(f"{path}: table shape {brdf.shape}, expected (3, {N_CELLS})")
+        stored = brdf / SCALE[:, None]
+    stored[~np.isfinite(stored)] = -1.0
+    tmp = f"{path}.tmp{os.getpid()}"
+    with open(tmp, "wb") as f:
+        f.write(HEADER.tobytes())
+        f.write(np.ascontiguousarray(stored, dtype="<f8").tobytes())
+    os.replace(tmp, path)
+
+
+def list_database(folder) -> list[str]:
+    """Sorted `.binary` paths of a database folder; clear error if there are none."""
+    folder = os.fspath(folder)
+    if not os.path.isdir(folder):
+        raise MerlError(f"{folder}: not a directory")
+    paths = sorted(os.path.join(folder, f) for f in os.listdir(folder) if f.endswith(".binary"))
+    if not paths:
+        raise MerlError(f"{folder}: no .binary files in this directory")
+    return paths
+
+
+def read_database(folder):
+    """Read every `.binary` in a folder: (tables, errors) where errors maps path to message."""
+    tables, errors = [], {}
+    for p in list_database(folder):
+        try:
+            tables.append(read_merl(p))
+        except MerlError as e:
+            errors[p] = str(e)
+    return tables, errors

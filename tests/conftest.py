@@ -1,0 +1,44 @@
+"""Shared fixtures.  MERL-proxy data comes from ../shared (or BRDFCL_SHARED); tests that need it
+skip with a reason when it is absent.  Proxy tables are generated once into BRDFCL_PROXY_CACHE
+(default ~/.cache/brdfcl/proxy), never into the repository."""
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+SHARED = Path(os.environ.get("BRDFCL_SHARED", ROOT.parent / "shared"))
+PROXY_CACHE = Path(os.environ.get("BRDFCL_PROXY_CACHE", Path.home() / ".cache" / "brdfcl" / "proxy"))
+
+
+def proxy_files(names):
+    """Paths of MERL-proxy files for the named materials, generated on first use."""
+    tool = SHARED / "tools" / "merl_proxy.py"
+    weights = SHARED / "data" / "nbrdf" / "merl"
+    if not tool.exists() or not weights.is_dir():
+        why = (f"MERL-proxy data not available: {SHARED} has no tools/merl_proxy.py "
+               f"and data/nbrdf/merl (set BRDFCL_SHARED)")
+        if os.environ.get("BRDFCL_REQUIRE_SHARED") == "1":
+            pytest.fail(why)
+        pytest.skip(why)
+    missing = [n for n in names if not (PROXY_CACHE / f"{n}.binary").exists()]
+    if missing:
+        PROXY_CACHE.mkdir(parents=True, exist_ok=True)
+        subprocess.run([sys.executable, str(tool), str(weights), str(PROXY_CACHE),
+                        "--materials", ",".join(missing)], check=True, capture_output=True)
+    return [PROXY_CACHE / f"{n}.binary" for n in names]
+
+
+@pytest.fixture(scope="session")
+def proxy_pair():
+    return proxy_files(["aluminium", "specular-red-phenolic"])
+
+
+@pytest.fixture(scope="session")
+def demo_db(tmp_path_factory):
+    from brdfcl.synth import write_synth
+    d = tmp_path_factory.mktemp("demo")
+    write_synth(d, log=None)
+    return d

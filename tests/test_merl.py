@@ -1,0 +1,83 @@
+import filecmp
+import time
+import tracemalloc
+
+import numpy as np
+import pytest
+
+from brdfcl.merl import FILE_SIZE, N_CELLS, SCALE, MerlError, read_database, read_merl, write_merl
+
+
+def test_proxy_round_trip_is_identical(proxy_pair, tmp_path):
+    for src in proxy_pair:
+        t = read_merl(src)
+        assert t.stored.shape == (3, N_CELLS)
+        assert 0 < t.n_missing < N_CELLS
+        out = tmp_path / src.name
+        write_merl(out, t)
+        assert filecmp.cmp(src, out, shallow=False)
+
+
+def test_read_speed_and_single_float64_copy(proxy_pair):
+    tracemalloc.start()
+    t0 = time.perf_counter()
+    t = read_merl(proxy_pair[0])
+    dt = time.perf_counter() - t0
+    _, peak = tracemalloc.get_traced_memory()
+    tracemalloc.stop()
+    one_copy = 3 * N_CELLS * 8
+    # a second float64 copy would double the peak; boolean masks add 1/8 each
+    assert peak < 1.3 * one_copy, f"peak {peak / 2**20:.1f} MiB for a {one_copy / 2**20:.1f} MiB table"
+    assert dt < 3.0
+    assert np.isnan(t.stored).sum() == 3 * t.n_missing
+
+
+def test_missing_values_counted_and_scaled(tmp_path):
+    brdf = np.full((3, N_CELLS), 0.25)
+    brdf[:, 10] = np.nan
+    write_merl(tmp_path / "a.binary", brdf)
+    raw = np.fromfile(tmp_path / "a.binary", dtype="<f8", offset=12).reshape(3, N_CELLS)
+    raw[1, 20] = np.inf
+    raw[2, 30] = -0.5
+    raw[0, 40] = np.nan
+    with open(tmp_path / "b.binary", "wb") as f:
+        f.write(np.array([90, 90, 180], "<i4").tobytes() + raw.tobytes())
+    t = read_merl(tmp_path / "b.binary")
+    assert t.n_missing == 4
+    assert t.name == "b"
+    ok = t.valid
+    np.testing.assert_allclose(t.brdf()[:, ok], 0.25, rtol=1e-15)
+    assert t.stored[0, 0] == pytest.approx(0.25 / SCALE[0])
+
+
+@pytest.mark.parametrize("content, message", [
+    (b"", "not a MERL file"),
+    (np.array([90, 90, 90], "<i4").tobytes() + b"\0" * 64, "wrong header"),
+    (np.array([90, 90, 180], "<i4").tobytes() + b"\0" * 64, "wrong size"),
+    (b"hello, this is not a brdf at all", "wrong header"),
+])
+def test_bad_files_name_file_and_problem(tmp_path, content, message):
+    p = tmp_path / "bad.binary"
+    p.write_bytes(content)
+    with pytest.raises(MerlError) as e:
+        read_merl(p)
+    assert str(p) in str(e.value) and message in str(e.value)
+
+
+def test_all_missing_is_an_error(tmp_path):
+    write_merl(tmp_path / "x.binary", np.full((3, N_CELLS), np.nan))
+    assert (tmp_path / "x.binary").stat().st_size == FILE_SIZE
+    with pytest.raises(MerlError, match="every cell is missing"):
+        read_merl(tmp_path / "x.binary")
+
+
+def test_database_reads_good_and_reports_bad(tmp_path):
+    write_merl(tmp_path / "good.binary", np.full((3, N_CELLS), 0.1))
+    (tmp_path / "bad.binary").write_bytes(b"xx")
+    (tmp_path / "notes.txt").write_text("ignored")
+    tables, errors = read_database(tmp_path)
+    assert [t.name for t in tables] == ["good"]
+    assert list(errors) == [str(tmp_path / "bad.binary")]
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(MerlError, match="no .binary files"):
+        read_database(tmp_path / "empty")
