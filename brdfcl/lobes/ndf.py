@@ -76,8 +76,9 @@ def epd(c, beta, p, N, dN_beta, dN_p):
     l = np.log(c.t2 / (beta * beta))
     q = np.exp(np.minimum(p * l, 80.0))
     h = np.exp(-q) / c.ch ** 4
-    return N * h, {"beta": h * (dN_beta + N * 2.0 * p * q / beta),
-                   "p": h * (dN_p - N * q * l)}
+    hq = h * q
+    return N * h, {"beta": h * dN_beta + hq * (N * 2.0 * p / beta),
+                   "p": h * dN_p - hq * l * N}
 
 
 def _consts_adapter(fn):

@@ -8,7 +8,8 @@ inline real_v ndf_sgd(const cell_t *c, real alpha, real p, real N, real dN_alpha
     real_v lz = log(z);
     real_v ch2 = c->ch * c->ch;
     real_v h = exp(-z / alpha - p * lz) / (ch2 * ch2);
-    *d_alpha = h * (dN_alpha + N * (z / (alpha * alpha) - 2 - 2 * p * alpha / z));
-    *d_p = h * (dN_p - N * lz);
+    real_v hN = h * N;
+    *d_alpha = h * dN_alpha + hN * (z / (alpha * alpha) - 2 - 2 * p * alpha / z);
+    *d_p = h * dN_p - hN * lz;
     return N * h;
 }

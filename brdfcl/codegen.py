@@ -1,0 +1,106 @@
+"""OpenCL source for one model, specialised from its lobe descriptions.
+
+Only the terms the model uses are included; only free parameters get a Jacobian
+column; J^T J accumulates only the pairs that are structurally non-zero in
+some channel (an amplitude of channel c touches channel c alone).  Fixed
+parameters are plain constants that the compiler folds away.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
+
+from mako.template import Template
+
+from .lobes.lobe import Emitter
+from .metrics import CBRT_EPS, check_metric
+from .model import Model
+
+
+def kernel_dir() -> Path:
+    """kernels/ beside the package (source checkout, editable install) or inside it (wheel)."""
+    here = Path(__file__).resolve().parent
+    for d in (here.parent / "kernels", here / "kernels"):
+        if (d / "model.cl.mako").exists():
+            return d
+    raise FileNotFoundError(f"brdfcl kernels not found beside {here}")
+
+
+@lru_cache(maxsize=None)
+def _read(rel: str) -> str:
+    return (kernel_dir() / rel).read_text()
+
+
+@lru_cache(maxsize=1)
+def _template() -> Template:
+    return Template(filename=str(kernel_dir() / "model.cl.mako"), strict_undefined=True)
+
+
+@dataclass(frozen=True)
+class KernelOptions:
+    real: str = "float"         # "float" or "double"
+    vw: int = 8                 # cells per vector (1 on GPUs)
+    local: int = 1              # work-group size along cells
+    chunk: int = 256            # vectors per work-group
+    metric: str = "log"
+    cosw: bool = True           # cos(theta_i) factor in the residual
+
+    def __post_init__(self):
+        check_metric(self.metric)
+        if self.real not in ("float", "double"):
+            raise ValueError(f"precision '{self.real}': valid are float, double")
+        if self.vw not in (1, 2, 4, 8, 16) or self.local < 1 or self.local & (self.local - 1):
+            raise ValueError(f"vector width {self.vw} / local size {self.local}: powers of two expected")
+
+
+class _Ctx:
+    def __init__(self, model):
+        self.model = model
+
+    def c(self, slot_name):
+        return "P_" + slot_name.replace(".", "_")
+
+
+def emit(model: Model) -> Emitter:
+    em = Emitter(model.column)
+    ctx = _Ctx(model)
+    for lb in model.lobes:
+        lb.emit(em, ctx)
+    return em
+
+
+def render(model: Model, opt: KernelOptions) -> str:
+    em = emit(model)
+    files = []
+    for lb in model.lobes:
+        for t in lb.terms:
+            if t.kernel not in files:
+                files.append(t.kernel)
+    cols = set()
+    pairs = sorted({(a, b) for ch in range(3) for a in em.jac[ch] for b in em.jac[ch] if b >= a})
+    for ch in range(3):
+        cols |= set(em.jac[ch])
+    assert cols == set(range(model.n_free)), "every free parameter needs a Jacobian column"
+    vec = "" if opt.vw == 1 else str(opt.vw)
+    return _template().render(
+        spec=model.spec, real=opt.real, vw=opt.vw, wg=opt.local, chunk=opt.chunk,
+        metric=opt.metric, cosw=opt.cosw, cbrt_eps=repr(CBRT_EPS),
+        real_v=opt.real + vec, cond_v=("int" if opt.real == "float" else "long") + vec,
+        common=_read("common.cl"), sources=[_read(f) for f in files],
+        slots=model.slots, n_slots=model.n_params,
+        consts=["K_" + k.replace(".", "_") for k in model.const_names],
+        n_prm=model.n_params + len(model.const_names), n_free=model.n_free,
+        lines=em.lines, value=em.value, jac=em.jac, pairs=pairs)
+
+
+def n_outputs(model: Model, kernel: str) -> int:
+    em = emit(model)
+    pairs = {(a, b) for ch in range(3) for a in em.jac[ch] for b in em.jac[ch] if b >= a}
+    return {"loss": 1, "grad": 1 + model.n_free, "jtj": 1 + model.n_free + len(pairs),
+            "errors": 5}[kernel]
+
+
+def jtj_pairs(model: Model):
+    em = emit(model)
+    return sorted({(a, b) for ch in range(3) for a in em.jac[ch] for b in em.jac[ch] if b >= a})

@@ -1,0 +1,216 @@
+"""The OpenCL engine: a database's cells on the device, evaluated for many parameter vectors at once.
+
+A `CellSet` is the geometry of a selection of table cells (computed once) and
+the measured values of every material at those cells, uploaded once.  An
+`Engine` is one compiled program for one model; each call evaluates a batch of
+(material, parameter vector) pairs in one launch per buffer block and returns
+float64 sums.  Parameters are natural values (not log space); gradients are
+with respect to the model's free natural parameters.
+"""
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass, field
+
+import numpy as np
+import pyopencl as cl
+
+from .codegen import KernelOptions, jtj_pairs, n_outputs, render
+from .device import has_fp64, pick_device
+from .geometry import DEFAULT_CUTOFF_DEG, table_geometry
+from .lobes.cells import Cells
+from .model import Model
+
+_CONTEXTS: dict = {}
+_PROGRAMS: dict = {}
+
+
+def context_for(selector=None):
+    """(context, queue, device) for a device selector, one per device per process."""
+    platform, device = pick_device(selector)
+    key = (platform.name, device.name, device.int_ptr)
+    if key not in _CONTEXTS:
+        ctx = cl.Context([device])
+        _CONTEXTS[key] = (ctx, cl.CommandQueue(ctx), device)
+    return _CONTEXTS[key]
+
+
+def default_options(device, real="float", **kw) -> KernelOptions:
+    """Vector width and work-group size from the device: vectors on CPUs, work-items on GPUs."""
+    is_cpu = bool(device.type & cl.device_type.CPU)
+    if is_cpu:
+        vw = min(16, device.preferred_vector_width_float if real == "float"
+                 else device.preferred_vector_width_double) or 1
+        local, chunk = 1, 256
+    else:
+        vw, local, chunk = 1, min(128, device.max_work_group_size), 4096
+    kw.setdefault("vw", vw)
+    kw.setdefault("local", local)
+    kw.setdefault("chunk", chunk)
+    return KernelOptions(real=real, **kw)
+
+
+@dataclass
+class CellSet:
+    """Selected cells of the table for a list of materials, on one device.
+
+    Geometry rows: sin th, cos th, cos td, cos ti, cos to, weight.  Data:
+    (material, channel, cell), NaN where a cell is missing.  Padded to a multiple
+    of the vector width with copies of the first cell at weight 0."""
+
+    names: list
+    index: np.ndarray                 # table cell index of each (unpadded) cell
+    n_cells: int                      # padded length
+    dtype: type
+    geom_host: np.ndarray
+    blocks: list = field(default_factory=list)   # [(first material, count, data buffer)]
+    geom_buf: object = None
+    data_host: np.ndarray | None = None
+
+    @property
+    def n_materials(self):
+        return len(self.names)
+
+    def cells(self) -> Cells:
+        """float64 reference cells of this set (unpadded)."""
+        return Cells.from_geometry(table_geometry(), self.index)
+
+    def block_of(self, mat):
+        for b, (first, count, _) in enumerate(self.blocks):
+            if first <= mat < first + count:
+                return b
+        raise IndexError(mat)
+
+
+def select_cells(cutoff_deg=DEFAULT_CUTOFF_DEG, stride=1, offset=0):
+    """Table indices of the fitted cells: above the horizon, inside the cut-off, every stride-th."""
+    idx = np.flatnonzero(table_geometry().mask(cutoff_deg))
+    return idx[offset::stride] if stride > 1 else idx
+
+
+def build_cellset(ctx, queue, tables, index, dtype=np.float32, pad_to=16, keep_host=False,
+                  max_alloc=None):
+    """Upload geometry and per-material data for the given table cells.
+
+    ``tables`` yields (name, stored-to-brdf callable or MerlTable); each table's
+    values are taken at ``index`` into a float32/float64 block, one table at a
+    time, so at most one float64 table is held."""
+    g = table_geometry()
+    n = index.size
+    n_pad = -(-n // pad_to) * pad_to
+    full = np.concatenate([index, np.full(n_pad - n, index[0])])
+    geom = np.stack([np.sin(g.theta_h[full]), np.cos(g.theta_h[full]), np.cos(g.theta_d[full]),
+                     g.cos_i[full], g.cos_o[full], g.weight[full]]).astype(dtype)
+    geom[5, n:] = 0
+    names, rows = [], []
+    for t in tables:
+        names.append(t.name)
+        vals = np.full((3, n_pad), np.nan, dtype=dtype)
+        vals[:, :n] = t.brdf(np.float64)[:, index] if n else 0
+        rows.append(vals)
+    data = np.stack(rows) if rows else np.zeros((0, 3, n_pad), dtype)
+    mf = cl.mem_flags
+    geom_buf = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=geom)
+    per_mat = 3 * n_pad * np.dtype(dtype).itemsize
+    max_alloc = max_alloc or ctx.devices[0].max_mem_alloc_size
+    per_block = max(1, int(max_alloc // per_mat))
+    blocks = []
+    for first in range(0, len(names), per_block):
+        chunk = np.ascontiguousarray(data[first:first + per_block])
+        blocks.append((first, len(chunk), cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=chunk)))
+    return CellSet(names, index, n_pad, dtype, geom, blocks, geom_buf,
+                   data if keep_host else None)
+
+
+class Engine:
+    """A model compiled for one device and metric; evaluates batches over a CellSet."""
+
+    def __init__(self, model: Model | str, device=None, real="float", metric="log", cosw=True,
+                 **options):
+        self.model = Model(model) if isinstance(model, str) else model
+        self.ctx, self.queue, self.device = context_for(device)
+        if real == "double" and not has_fp64(self.device):
+            raise ValueError(f"device {self.device.name} has no float64 support")
+        self.opt = default_options(self.device, real, metric=metric, cosw=cosw, **options)
+        self.dtype = np.float32 if real == "float" else np.float64
+        self.source = render(self.model, self.opt)
+        key = (hashlib.sha1(self.source.encode()).hexdigest(), self.device.int_ptr)
+        if key not in _PROGRAMS:
+            _PROGRAMS[key] = cl.Program(self.ctx, self.source).build(options=["-cl-mad-enable"])
+        self.program = _PROGRAMS[key]
+        self._kernels = {k: getattr(self.program, k) for k in ("loss", "grad", "jtj", "errors", "predict")}
+        self.pairs = jtj_pairs(self.model)
+
+    # --- data ------------------------------------------------------------------------------------
+    def cellset(self, tables, index=None, cutoff_deg=DEFAULT_CUTOFF_DEG, **kw) -> CellSet:
+        index = select_cells(cutoff_deg) if index is None else np.asarray(index)
+        return build_cellset(self.ctx, self.queue, tables, index, self.dtype,
+                             pad_to=max(16, self.opt.vw), **kw)
+
+    # --- launches --------------------------------------------------------------------------------
+    def _params(self, values):
+        values = np.atleast_2d(np.asarray(values, dtype=np.float64))
+        return np.concatenate([values, self.model.consts(values)], axis=1).astype(self.dtype)
+
+    def _run(self, kname, cs: CellSet, values, mats):
+        values = np.atleast_2d(values)
+        mats = np.broadcast_to(np.asarray(mats, dtype=np.int32), (values.shape[0],))
+        nout = n_outputs(self.model, kname)
+        n_vec = cs.n_cells // self.opt.vw
+        ng = max(1, -(-n_vec // self.opt.chunk))
+        out = np.zeros((values.shape[0], nout))
+        prm_all = self._params(values)
+        kern = self._kernels[kname]
+        mf = cl.mem_flags
+        for b, (first, count, dbuf) in enumerate(cs.blocks):
+            sel = np.flatnonzero((mats >= first) & (mats < first + count))
+            if sel.size == 0:
+                continue
+            prm = cl.Buffer(self.ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=np.ascontiguousarray(prm_all[sel]))
+            mat = cl.Buffer(self.ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=(mats[sel] - first).astype(np.int32))
+            part = np.empty((sel.size, ng, nout), dtype=self.dtype)
+            obuf = cl.Buffer(self.ctx, mf.WRITE_ONLY, part.nbytes)
+            kern(self.queue, (sel.size, ng * self.opt.local), (1, self.opt.local),
+                 cs.geom_buf, np.int32(cs.n_cells), dbuf, prm, mat, obuf)
+            cl.enqueue_copy(self.queue, part, obuf)
+            out[sel] = part.sum(axis=1, dtype=np.float64)
+        return out
+
+    def loss(self, cs, values, mats):
+        """sum w r^2 per evaluation, shape (n,)."""
+        return self._run("loss", cs, values, mats)[:, 0]
+
+    def grad(self, cs, values, mats):
+        """(loss (n,), gradient of the loss w.r.t. the free natural parameters (n, n_free))."""
+        o = self._run("grad", cs, values, mats)
+        return o[:, 0], 2.0 * o[:, 1:]
+
+    def jtj(self, cs, values, mats):
+        """(loss, J^T W r (n, k), J^T W J (n, k, k)) for Gauss-Newton steps."""
+        o = self._run("jtj", cs, values, mats)
+        k = self.model.n_free
+        H = np.zeros((o.shape[0], k, k))
+        for i, (a, b) in enumerate(self.pairs):
+            H[:, a, b] = H[:, b, a] = o[:, 1 + k + i]
+        return o[:, 0], o[:, 1:1 + k], H
+
+    def errors(self, cs, values, mats):
+        """Reported errors (brdfcl.metrics) per evaluation: dict of arrays."""
+        o = self._run("errors", cs, values, mats)
+        sw = np.maximum(o[:, 4], 1e-300)
+        return {"rmse_l2": np.sqrt(o[:, 0] / sw), "rmse_log": np.sqrt(o[:, 1] / sw),
+                "rmse_cbrt": np.sqrt(o[:, 2] / sw), "rel_rmse": np.sqrt(o[:, 0] / np.maximum(o[:, 3], 1e-300))}
+
+    def predict(self, cs, values):
+        """Model values (n, 3, cells of the set) for each parameter vector."""
+        values = np.atleast_2d(values)
+        prm = cl.Buffer(self.ctx, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
+                        hostbuf=self._params(values))
+        out = np.empty((values.shape[0], 3, cs.n_cells), dtype=self.dtype)
+        obuf = cl.Buffer(self.ctx, cl.mem_flags.WRITE_ONLY, out.nbytes)
+        n_vec = cs.n_cells // self.opt.vw
+        lw = 64 if self.opt.local > 1 else 1
+        self._kernels["predict"](self.queue, (values.shape[0], -(-n_vec // lw) * lw), None,
+                                 cs.geom_buf, np.int32(cs.n_cells), prm, obuf)
+        cl.enqueue_copy(self.queue, out, obuf)
+        return out[:, :, :cs.index.size]

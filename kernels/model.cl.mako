@@ -1,0 +1,253 @@
+/* brdfcl model kernels, generated for: ${spec}
+ * real = ${real}, vector width ${vw}, metric ${metric}, cos(theta_i) weight ${'on' if cosw else 'off'}.
+ *
+ * Work layout: dimension 0 = evaluation (a parameter vector for one material), dimension 1 =
+ * chunks of cells; a work-group of ${wg} items strides over ${chunk} vectors of ${vw} cells,
+ * accumulates in private vectors, reduces in local memory and writes one partial sum per
+ * output; the host adds the partials in float64 (bounded float accumulation, exact total). */
+% if real == "double":
+#pragma OPENCL EXTENSION cl_khr_fp64 : enable
+% endif
+typedef ${real} real;
+typedef ${real_v} real_v;
+typedef ${cond_v} cond_v;
+% if vw == 1:
+#define VLOAD(p, o) ((p)[o])
+% else:
+#define VLOAD(p, o) vload${vw}(0, (p) + (o))
+% endif
+
+${common}
+
+% for src in sources:
+${src}
+% endfor
+
+/* metric (brdfcl/metrics.py) */
+inline real_v metric_g(real_v x)
+{
+% if metric == "l2":
+    return x;
+% elif metric == "log":
+    return log1p(x);
+% else:
+    return cbrt(x + (real)${cbrt_eps});
+% endif
+}
+
+inline real_v metric_dg(real_v x, real_v g)
+{
+% if metric == "l2":
+    return (real_v)1;
+% elif metric == "log":
+    return 1 / (1 + x);
+% else:
+    return 1 / (3 * g * g);
+% endif
+}
+
+inline real hsum(real_v v)
+{
+% if vw == 1:
+    return v;
+% else:
+<% w = vw %>\
+% while w > 1:
+<% w //= 2 %>\
+    ${'real' if w == 1 else real + str(w)} h${w} = ${'v' if w * 2 == vw else 'h' + str(w * 2)}.lo + ${'v' if w * 2 == vw else 'h' + str(w * 2)}.hi;
+% endwhile
+    return h1;
+% endif
+}
+
+<%def name="prologue()">
+    const int e = get_global_id(0);
+    const int g = get_group_id(1), ng = get_num_groups(1);
+    const int lid = get_local_id(1);
+    __global const real *P = prm + (size_t)e * ${n_prm};
+% for s in slots:
+    const real ${s.cname} = P[${loop.index}];
+% endfor
+% for k in consts:
+    const real ${k} = P[${n_slots + loop.index}];
+% endfor
+    __global const real *M = data + (size_t)mat[e] * 3 * n_cells;
+    const int v0 = g * ${chunk}, v1 = min(v0 + ${chunk}, n_cells / ${vw});
+</%def>
+
+<%def name="cell_and_model()">
+        const int o = v * ${vw};
+        cell_t c = make_cell(VLOAD(geom, o), VLOAD(geom, n_cells + o), VLOAD(geom, 2 * n_cells + o),
+                             VLOAD(geom, 3 * n_cells + o), VLOAD(geom, 4 * n_cells + o));
+        const real_v w = VLOAD(geom, 5 * n_cells + o);
+% for line in lines:
+        ${line}
+% endfor
+% for ch in range(3):
+        const real_v p${ch} = ${' + '.join(value[ch]) if value[ch] else '(real_v)0'};
+% endfor
+</%def>
+
+<%def name="residuals()">
+        const real_v cw = ${'c.ci' if cosw else '(real_v)1'};
+% for ch in range(3):
+        const real_v m${ch} = VLOAD(M, ${ch} * n_cells + o);
+        const real_v x${ch} = p${ch} * cw;
+        const real_v g${ch} = metric_g(x${ch});
+        const real_v w${ch} = SEL(w, (real_v)0, isnan(m${ch}));
+        const real_v r${ch} = SEL(g${ch} - metric_g(m${ch} * cw), (real_v)0, isnan(m${ch}));
+% endfor
+</%def>
+
+<%def name="reduce_and_write(names)">
+    /* work-group reduction, then one partial per output */
+    __local real red[${wg}];
+    __global real *out_e = out + ((size_t)e * ng + g) * ${len(names)};
+% for a in names:
+    red[lid] = hsum(${a});
+% if wg > 1:
+    barrier(CLK_LOCAL_MEM_FENCE);
+    for (int s = ${wg} / 2; s > 0; s >>= 1) {
+        if (lid < s) red[lid] += red[lid + s];
+        barrier(CLK_LOCAL_MEM_FENCE);
+    }
+% endif
+    if (lid == 0) out_e[${loop.index}] = red[0];
+% if wg > 1:
+    barrier(CLK_LOCAL_MEM_FENCE);
+% endif
+% endfor
+</%def>
+
+#define KARGS __global const real *geom, const int n_cells, __global const real *data, \
+              __global const real *prm, __global const int *mat, __global real *out
+
+/* loss = sum w r^2 */
+__kernel __attribute__((reqd_work_group_size(1, ${wg}, 1))) void loss(KARGS)
+{
+${prologue()}
+    real_v acc_l = 0;
+    for (int v = v0 + lid; v < v1; v += ${wg}) {
+${cell_and_model()}
+${residuals()}
+% for ch in range(3):
+        acc_l += w${ch} * r${ch} * r${ch};
+% endfor
+    }
+${reduce_and_write(['acc_l'])}
+}
+
+/* loss and J^T W r (the gradient is 2 J^T W r) */
+__kernel __attribute__((reqd_work_group_size(1, ${wg}, 1))) void grad(KARGS)
+{
+${prologue()}
+    real_v acc_l = 0;
+% for k in range(n_free):
+    real_v acc_g${k} = 0;
+% endfor
+    for (int v = v0 + lid; v < v1; v += ${wg}) {
+${cell_and_model()}
+${residuals()}
+% for ch in range(3):
+        {
+        acc_l += w${ch} * r${ch} * r${ch};
+        const real_v q = w${ch} * r${ch} * metric_dg(x${ch}, g${ch}) * cw;
+% for k, parts in sorted(jac[ch].items()):
+        acc_g${k} += q * (${' + '.join(parts)});
+% endfor
+        }
+% endfor
+    }
+${reduce_and_write(['acc_l'] + ['acc_g%d' % k for k in range(n_free)])}
+}
+
+/* loss, J^T W r and the upper triangle of J^T W J (Gauss-Newton / Levenberg-Marquardt) */
+__kernel __attribute__((reqd_work_group_size(1, ${wg}, 1))) void jtj(KARGS)
+{
+${prologue()}
+    real_v acc_l = 0;
+% for k in range(n_free):
+    real_v acc_g${k} = 0;
+% endfor
+% for (a, b) in pairs:
+    real_v acc_h${a}_${b} = 0;
+% endfor
+    for (int v = v0 + lid; v < v1; v += ${wg}) {
+${cell_and_model()}
+${residuals()}
+% for ch in range(3):
+        {
+        acc_l += w${ch} * r${ch} * r${ch};
+        const real_v dg = metric_dg(x${ch}, g${ch}) * cw;
+% for k, parts in sorted(jac[ch].items()):
+        const real_v u${k} = dg * (${' + '.join(parts)});
+        acc_g${k} += w${ch} * r${ch} * u${k};
+% endfor
+% for a in sorted(jac[ch]):
+        {
+        const real_v wu = w${ch} * u${a};
+% for b in sorted(jac[ch]):
+% if b >= a:
+        acc_h${a}_${b} += wu * u${b};
+% endif
+% endfor
+        }
+% endfor
+        }
+% endfor
+    }
+${reduce_and_write(['acc_l'] + ['acc_g%d' % k for k in range(n_free)] + ['acc_h%d_%d' % ab for ab in pairs])}
+}
+
+/* every reported error at once: sum w r^2 for l2, log, cbrt, sum w x_m^2, sum w */
+__kernel __attribute__((reqd_work_group_size(1, ${wg}, 1))) void errors(KARGS)
+{
+${prologue()}
+    real_v acc_l2 = 0, acc_log = 0, acc_cbrt = 0, acc_mm = 0, acc_w = 0;
+    for (int v = v0 + lid; v < v1; v += ${wg}) {
+${cell_and_model()}
+        const real_v cw = ${'c.ci' if cosw else '(real_v)1'};
+% for ch in range(3):
+        {
+        const real_v m = VLOAD(M, ${ch} * n_cells + o);
+        const real_v ww = SEL(w, (real_v)0, isnan(m));
+        const real_v xm = SEL(m * cw, (real_v)0, isnan(m)), xp = SEL(p${ch} * cw, (real_v)0, isnan(m));
+        const real_v d = xp - xm;
+        const real_v dl = log1p(xp) - log1p(xm);
+        const real_v dc = cbrt(xp + (real)${cbrt_eps}) - cbrt(xm + (real)${cbrt_eps});
+        acc_l2 += ww * d * d;
+        acc_log += ww * dl * dl;
+        acc_cbrt += ww * dc * dc;
+        acc_mm += ww * xm * xm;
+        acc_w += ww;
+        }
+% endfor
+    }
+${reduce_and_write(['acc_l2', 'acc_log', 'acc_cbrt', 'acc_mm', 'acc_w'])}
+}
+
+/* model values at every cell of the set for one parameter vector per evaluation: out (e, 3, n) */
+__kernel void predict(__global const real *geom, const int n_cells, __global const real *prm,
+                      __global real *out)
+{
+    const int e = get_global_id(0);
+    const int v = get_global_id(1);
+    if (v >= n_cells / ${vw}) return;
+    __global const real *P = prm + (size_t)e * ${n_prm};
+% for s in slots:
+    const real ${s.cname} = P[${loop.index}];
+% endfor
+% for k in consts:
+    const real ${k} = P[${n_slots + loop.index}];
+% endfor
+    {
+${cell_and_model()}
+% for ch in range(3):
+% if vw == 1:
+        out[((size_t)e * 3 + ${ch}) * n_cells + o] = p${ch};
+% else:
+        vstore${vw}(p${ch}, 0, out + ((size_t)e * 3 + ${ch}) * n_cells + o);
+% endif
+% endfor
+    }
+}

@@ -1,0 +1,122 @@
+"""OpenCL kernels against the float64 reference, on proxy data."""
+import numpy as np
+import pytest
+
+from brdfcl.engine import Engine, select_cells
+from brdfcl.geometry import table_geometry
+from brdfcl.merl import read_merl
+from brdfcl.metrics import METRICS, errors, loss_grad, transform
+
+SPECS = ["diffuse+diffraction+ggx",
+         "diffuse+diffraction:abc:conductor+beckmann:smith-hc:dielectric",
+         "diffraction:gauss:schlick+sgd:vcavity:conductor",
+         "diffuse+epd:none:none", "ggx:smith-hc:none+diffraction:hp:dielectric",
+         "beckmann:vcavity:schlick"]
+
+
+@pytest.fixture(scope="module")
+def tables(proxy_pair):
+    return [read_merl(p) for p in proxy_pair]
+
+
+def _random_values(model, rng, n):
+    return model.from_x(model.x_lo + rng.random((n, model.n_free)) * (model.x_hi - model.x_lo))
+
+
+def _reference(model, cells, meas, w, values, metric):
+    p, J = model.reference(cells, values)
+    cw = cells.ci
+    ok = np.isfinite(meas)
+    gp, dg = transform(metric, p * cw)
+    r = np.where(ok, gp - transform(metric, np.where(ok, meas, 0) * cw)[0], 0)
+    ww = np.where(ok, w, 0)
+    u = np.where(ok[..., None], (dg * cw)[..., None] * J, 0)
+    return p, np.sum(ww * r * r), 2 * np.einsum("cn,cnk->k", ww * r, u), np.einsum("cn,cnk,cnl->kl", ww, u, u)
+
+
+@pytest.mark.parametrize("real, tol", [("double", 1e-10), ("float", 1e-5)])
+@pytest.mark.parametrize("spec", SPECS)
+def test_kernels_match_reference(tables, spec, real, tol):
+    rng = np.random.default_rng(len(spec))
+    full = spec == SPECS[0]
+    idx = select_cells(90 if full else 80)[:: 1 if full else 13]     # all valid cells for the full model
+    metric = METRICS[len(spec) % 3]
+    eng = Engine(spec, real=real, metric=metric)
+    cs = eng.cellset(tables, idx)
+    cells = cs.cells()
+    w = table_geometry().weight[idx]
+    V = _random_values(eng.model, rng, 2 if full else 4)
+    mats = np.arange(len(V)) % 2
+    P = eng.predict(cs, V)
+    L, G = eng.grad(cs, V, mats)
+    L2, JTr, H = eng.jtj(cs, V, mats)
+    E = eng.errors(cs, V, mats)
+    for e in range(len(V)):
+        meas = tables[mats[e]].brdf()[:, idx]
+        p, lr, gr, hr = _reference(eng.model, cells, meas, w, V[e], metric)
+        big = np.abs(p) > 1e-6 * np.abs(p).max()
+        np.testing.assert_allclose(P[e][big], p[big], rtol=tol * 10)       # per cell
+        assert L[e] == pytest.approx(lr, rel=tol) and L2[e] == pytest.approx(lr, rel=tol)
+        gscale = np.abs(gr).max()
+        np.testing.assert_allclose(G[e], gr, rtol=tol, atol=tol * gscale)
+        np.testing.assert_allclose(2 * JTr[e], gr, rtol=tol, atol=tol * gscale)
+        np.testing.assert_allclose(H[e], hr, rtol=tol, atol=tol * np.abs(hr).max())
+        ref_err = errors(p, meas, w, cells.ci)
+        for k, v in ref_err.items():
+            assert E[k][e] == pytest.approx(v, rel=tol), k
+
+
+@pytest.mark.parametrize("real", ["float", "double"])
+def test_no_nan_at_extremes(tables, real):
+    """Bounds, alpha at 1e-4, a at both bounds, zero amplitudes, grazing cells included."""
+    for spec in ("diffuse+diffraction:abc:conductor+ggx:smith:schlick", "diffraction:gauss:dielectric+beckmann",
+                 "diffuse+diffraction+sgd", "diffraction:hp+epd:smith-hc:schlick".replace(":smith-hc", ":none"),
+                 "ggx:smith-hc:conductor"):
+        eng = Engine(spec, real=real)
+        m = eng.model
+        cs = eng.cellset(tables, select_cells(None))
+        corners = [m.lo, m.hi, m.defaults()]
+        rng = np.random.default_rng(3)
+        corners += list(np.where(rng.random((12, m.n_params)) < 0.5, m.lo, m.hi))
+        zero = m.defaults()
+        zero[[i for i, n in enumerate(m.names) if ".rho_" in n]] = 0.0
+        corners.append(zero)
+        V = np.array(corners)
+        mats = np.arange(len(V)) % 2
+        L, Jr, H = eng.jtj(cs, V, mats)
+        _, G = eng.grad(cs, V, mats)
+        E = eng.errors(cs, V, mats)
+        assert np.isfinite(L).all() and np.isfinite(Jr).all() and np.isfinite(H).all(), spec
+        assert np.isfinite(G).all() and all(np.isfinite(v).all() for v in E.values()), spec
+        assert np.isfinite(eng.predict(cs, V)).all(), spec
+
+
+def test_float32_accumulation_over_the_whole_table(tables):
+    """The sum of 1.4 million float32 weights keeps float64 precision (bounded partial sums)."""
+    eng = Engine("diffuse", real="float", metric="l2", cosw=False)
+    g = table_geometry()
+    idx = np.flatnonzero(g.above_horizon)
+    cs = eng.cellset(tables[:1], idx)
+    ok = tables[0].valid[idx]
+    exact = 3 * np.sum(g.weight[idx][ok].astype(np.float32).astype(np.float64))
+    got = eng._run("errors", cs, eng.model.defaults()[None], [0])[0, 4]     # sum of w over channels
+    assert got == pytest.approx(exact, rel=1e-6)
+
+
+def test_blocks_give_the_same_answer(tables):
+    eng = Engine("diffuse+ggx", real="double")
+    idx = select_cells()[::11]
+    one = eng.cellset(tables, idx)
+    split = eng.cellset(tables, idx, max_alloc=3 * one.n_cells * 8)
+    assert len(one.blocks) == 1 and len(split.blocks) == 2
+    V = np.tile(eng.model.defaults(), (4, 1))
+    mats = [1, 0, 1, 0]
+    np.testing.assert_allclose(eng.jtj(one, V, mats)[2], eng.jtj(split, V, mats)[2], rtol=1e-14)
+
+
+def test_device_selection():
+    from brdfcl.device import DeviceError, pick_device
+    p, d = pick_device("0")
+    assert pick_device("cpu")[1].name == d.name
+    with pytest.raises(DeviceError, match="no OpenCL device"):
+        pick_device("no-such-gpu")
