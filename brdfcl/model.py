@@ -172,15 +172,20 @@ class Model:
 
     # --- reference evaluation -------------------------------------------------------------------
     def reference(self, cells, values, jacobian=True):
-        """float64 model value (3, n) and Jacobian (3, n, n_free) w.r.t. the free natural parameters."""
+        """Model value (3, n) and Jacobian (3, n, n_free) w.r.t. the free natural parameters.
+
+        Computed in the precision of the cells (float64 is the reference; float32
+        cells give the float32 numpy version the benchmark compares against)."""
+        dt = cells.sh.dtype
         values = np.asarray(values, dtype=np.float64)
-        consts = dict(zip(self.const_names, self.consts(values)))
+        consts = dict(zip(self.const_names, self.consts(values).astype(dt)))
+        values = values.astype(dt)
 
         def value(name):
             return values[self._pos[name]]
 
-        p = np.zeros((3, len(cells)))
-        J = np.zeros((3, len(cells), self.n_free)) if jacobian else None
+        p = np.zeros((3, len(cells)), dtype=dt)
+        J = np.zeros((3, len(cells), self.n_free), dtype=dt) if jacobian else None
         for lb in self.lobes:
             vals, jacs = lb.reference(cells, value, consts)
             for ch in range(3):

@@ -63,5 +63,8 @@ class Cells:
         """V-cavity shadowing/masking, parameter free."""
         return np.minimum(1.0, 2.0 * self.ch * np.minimum(self.ci, self.co) / self.cd)
 
+    def astype(self, dtype):
+        return Cells(*(np.asarray(a, dtype=dtype) for a in (self.sh, self.ch, self.cd, self.ci, self.co)))
+
     def __len__(self):
         return self.sh.size

@@ -1,0 +1,222 @@
+#!/usr/bin/env python3
+"""Evaluation throughput: loss + gradient of a model over a MERL-proxy database.
+
+Compares, in one run and on the same cells, the OpenCL kernels (float32 and
+float64, all materials in one launch) with the float64 numpy reference and a
+float32 numpy version (one material at a time), and places the kernels on a
+roofline measured in the same run (a streaming-read kernel for bandwidth, an
+FMA kernel for arithmetic).  Times are medians of --repeat runs; speed-ups are
+ratios of throughputs (material-cells per second) measured side by side.
+
+    python bench/bench_eval.py [--data DIR] [--model diffuse+diffraction+ggx]
+"""
+from __future__ import annotations
+
+import argparse
+import datetime
+import json
+import re
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pyopencl as cl
+
+from brdfcl import __version__
+from brdfcl.engine import Engine, select_cells
+from brdfcl.geometry import table_geometry
+from brdfcl.merl import list_database, read_merl
+from brdfcl.metrics import loss_grad
+
+HERE = Path(__file__).resolve().parent
+SHARED = HERE.parent.parent / "shared"
+
+
+def proxy_dir(path):
+    """The proxy database folder, generated from ../shared on first use."""
+    path = Path(path)
+    if not list(path.glob("*.binary")):
+        tool = SHARED / "tools" / "merl_proxy.py"
+        if not tool.exists():
+            sys.exit(f"no .binary files in {path} and no {tool} to make them")
+        print(f"generating the MERL-proxy database into {path} ...", flush=True)
+        subprocess.run([sys.executable, str(tool), str(SHARED / "data" / "nbrdf" / "merl"), str(path)],
+                       check=True, stdout=subprocess.DEVNULL)
+    return path
+
+
+def median_time(fn, repeat):
+    fn()
+    ts = []
+    for _ in range(repeat):
+        t = time.perf_counter()
+        fn()
+        ts.append(time.perf_counter() - t)
+    return float(np.median(ts))
+
+
+ROOF_SRC = """
+__kernel void stream(__global const float16 *a, __global float *out, const int n) {
+    const int g = get_global_id(0), ng = get_global_size(0);
+    float16 s = 0;
+    for (int i = g; i < n; i += ng) s += a[i];
+    out[g] = s.s0 + s.s1 + s.s2 + s.s3 + s.s4 + s.s5 + s.s6 + s.s7 + s.s8 + s.s9 + s.sa + s.sb + s.sc + s.sd + s.se + s.sf;
+}
+__kernel void fma_peak(__global float *out, const int iters) {
+    const int g = get_global_id(0);
+    float16 a = (float16)(g * 1e-7f), b = (float16)0.999f, c = (float16)1e-3f, d = a + 1, e = a + 2, f = a + 3;
+    for (int i = 0; i < iters; i++) {
+        a = fma(a, b, c); d = fma(d, b, c); e = fma(e, b, c); f = fma(f, b, c);
+    }
+    float16 s = a + d + e + f;
+    out[g] = s.s0 + s.s5 + s.sa + s.sf;
+}
+"""
+
+
+def roofline(eng, repeat):
+    ctx, queue, dev = eng.ctx, eng.queue, eng.device
+    prg = cl.Program(ctx, ROOF_SRC).build()
+    n16 = (256 << 20) // 64                                  # 256 MiB of float16
+    a = cl.Buffer(ctx, cl.mem_flags.READ_ONLY, n16 * 64)
+    cl.enqueue_fill_buffer(queue, a, np.float32(1), 0, n16 * 64)
+    nw = dev.max_compute_units * 64
+    out = cl.Buffer(ctx, cl.mem_flags.WRITE_ONLY, nw * 4)
+
+    k_stream, k_peak = cl.Kernel(prg, "stream"), cl.Kernel(prg, "fma_peak")
+
+    def stream():
+        k_stream(queue, (nw,), None, a, out, np.int32(n16)).wait()
+    bw = n16 * 64 / median_time(stream, repeat)
+    iters = 20000
+
+    def peak():
+        k_peak(queue, (nw,), None, out, np.int32(iters)).wait()
+    flops = nw * iters * 4 * 16 * 2 / median_time(peak, repeat)
+    return bw, flops
+
+
+_OPS = re.compile(r"(?<![eE])[-+*/](?!=)|\b(?:fmin|fmax)\b")
+_TRANS = re.compile(r"\b(?:exp|log|log1p|sqrt|cbrt|erfc|pow)\s*\(")
+
+
+def op_count(source, kernel="grad"):
+    """(arithmetic ops, transcendental calls) per cell in a kernel's loop, from the generated source.
+
+    Inline functions are expanded once per call site.  An estimate: compilers fold some
+    operations and the transcendentals cost many instructions each."""
+    funcs = {m.group(1): m.group(2) for m in re.finditer(
+        r"inline \w+ (\w+)\([^)]*\)\s*\{(.*?)\n\}", source, re.S)}
+    body = source.split(f"void {kernel}(", 1)[1]
+    body = body.split("for (int v = v0", 1)[1].split("/* work-group reduction", 1)[0]
+
+    def count(text, depth=0):
+        text = re.sub(r"\[[^\]]*\]|\(size_t\)|\d+\.?\d*e[-+]\d+", "", text)
+        ops = len(_OPS.findall(text))
+        tr = len(_TRANS.findall(text))
+        if depth < 3:
+            for name, fbody in funcs.items():
+                calls = len(re.findall(rf"\b{name}\s*\(", text))
+                if calls:
+                    o, t = count(fbody, depth + 1)
+                    ops += calls * o
+                    tr += calls * t
+        return ops, tr
+    return count(body)
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--data", default=str(Path.home() / ".cache" / "brdfcl" / "proxy-all"),
+                    help="folder of MERL(-proxy) .binary files (proxy generated there if empty)")
+    ap.add_argument("--model", default="diffuse+diffraction+ggx")
+    ap.add_argument("--metric", default="log")
+    ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--numpy-materials", type=int, default=2,
+                    help="materials timed with numpy (it is slow; throughput is per material-cell)")
+    ap.add_argument("--device", default=None)
+    ap.add_argument("--out", default=str(HERE / "results"))
+    args = ap.parse_args(argv)
+
+    data = proxy_dir(args.data)
+    paths = list_database(data)
+    idx = select_cells()
+    rows, notes = [], {}
+
+    t = time.perf_counter()
+    eng32 = Engine(args.model, device=args.device, real="float", metric=args.metric)
+    cs32 = eng32.cellset(read_merl(p) for p in paths)
+    notes["load_s"] = time.perf_counter() - t
+    n_mat, n_cells = cs32.n_materials, idx.size
+    model = eng32.model
+    V = np.tile(model.defaults(), (n_mat, 1))
+    mats = np.arange(n_mat)
+    t32 = median_time(lambda: eng32.grad(cs32, V, mats), args.repeat)
+    rows.append(("OpenCL float32 (all materials, one launch)", n_mat, t32, n_mat * n_cells / t32))
+    del cs32
+
+    eng64 = Engine(args.model, device=args.device, real="double", metric=args.metric)
+    cs64 = eng64.cellset(read_merl(p) for p in paths)
+    t64 = median_time(lambda: eng64.grad(cs64, V, mats), args.repeat)
+    rows.append(("OpenCL float64 (all materials, one launch)", n_mat, t64, n_mat * n_cells / t64))
+    del cs64
+
+    g = table_geometry()
+    w = g.weight[idx]
+    cells64 = eng64.cellset([], idx).cells()
+    k = min(args.numpy_materials, n_mat)
+    meas = [read_merl(p).brdf()[:, idx] for p in paths[:k]]
+    for name, dt in (("numpy float64 reference", np.float64), ("numpy float32", np.float32)):
+        cells = cells64.astype(dt)
+        ms = [m.astype(dt) for m in meas]
+        ww, cw = w.astype(dt), cells.ci
+
+        def run():
+            for m in ms:
+                loss_grad(model, cells, m, ww, cw, V[0], args.metric)
+        tn = median_time(run, max(1, args.repeat // 2))
+        rows.append((f"{name} (one material at a time)", k, tn, k * n_cells / tn))
+
+    bw, peak = roofline(eng32, args.repeat)
+    ops, trans = op_count(eng32.source)
+    rate32 = rows[0][3]
+    bytes_per = 9 * 4                                     # 6 geometry + 3 data floats per cell-eval
+    ai = (ops + trans) / bytes_per
+    attainable = min(peak, ai * bw)
+    achieved = rate32 * (ops + trans)
+
+    ref = rows[2][3]
+    lines = [f"# bench_eval: loss + gradient throughput ({datetime.date.today()})", "",
+             f"Data: MERL-proxy ({n_mat} materials from {data}), {n_cells} cells per material "
+             f"(80 degree cut-off). Model `{model.spec}` ({model.n_free} free parameters), metric "
+             f"`{args.metric}`. Device: {eng32.device.name} ({eng32.device.platform.version}). "
+             f"brdfcl {__version__}. Medians of {args.repeat} runs; numpy timed on {k} materials.", "",
+             "| implementation | materials | time per evaluation of all of them (s) | "
+             "material-cells/s | speed-up vs numpy float64 |", "|---|---|---|---|---|"]
+    for name, nm, tt, rate in rows:
+        lines.append(f"| {name} | {nm} | {tt:.3f} | {rate:.3g} | {rate / ref:.1f}x |")
+    lines += ["", "Roofline of the float32 kernel, measured in the same run:", "",
+              f"* streaming read bandwidth {bw / 1e9:.1f} GB/s; FMA peak {peak / 1e9:.1f} GFLOP/s",
+              f"* per cell-evaluation: {ops} arithmetic ops + {trans} transcendental calls "
+              f"(counted in the generated source, an estimate), {bytes_per} bytes read "
+              f"(arithmetic intensity {ai:.1f} op/byte)",
+              f"* achieved {achieved / 1e9:.1f} Gop/s and {rate32 * bytes_per / 1e9:.1f} GB/s; "
+              f"attainable at this intensity {attainable / 1e9:.1f} Gop/s: "
+              f"{100 * achieved / attainable:.0f}% of the roofline "
+              f"({'compute' if ai * bw > peak else 'memory'} bound)", "",
+              f"Database load (read 80 files, upload float32 cells): {notes['load_s']:.1f} s."]
+    text = "\n".join(lines)
+    print(text)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "bench_eval.md").write_text(text + "\n")
+    (out / "bench_eval.json").write_text(json.dumps({
+        "rows": [dict(zip(("name", "materials", "seconds", "rate"), r)) for r in rows],
+        "bandwidth": bw, "peak": peak, "ops": ops, "transcendentals": trans}, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
