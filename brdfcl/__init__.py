@@ -4,5 +4,21 @@ __version__ = "0.1.0"
 from .merl import MerlError, MerlTable, read_database, read_merl, write_merl  # noqa: E402
 from .model import DEFAULT_MODEL, Model, ModelError  # noqa: E402
 
-__all__ = ["DEFAULT_MODEL", "MerlError", "MerlTable", "Model", "ModelError", "__version__",
-           "read_database", "read_merl", "write_merl"]
+
+def __getattr__(name):
+    # The OpenCL-backed API is imported on first use so that `import brdfcl` stays light.
+    if name in ("fit_all", "RunReport"):
+        from . import run
+        return getattr(run, name)
+    if name in ("FitOptions", "FitResult", "Fitter", "fit_tables"):
+        from . import fit
+        return getattr(fit, name)
+    if name == "Engine":
+        from .engine import Engine
+        return Engine
+    raise AttributeError(f"module 'brdfcl' has no attribute '{name}'")
+
+
+__all__ = ["DEFAULT_MODEL", "Engine", "FitOptions", "FitResult", "Fitter", "MerlError", "MerlTable",
+           "Model", "ModelError", "RunReport", "__version__", "fit_all", "fit_tables", "read_database",
+           "read_merl", "write_merl"]

@@ -35,6 +35,88 @@ def cmd_synth(args):
     return 0
 
 
+def _fixed(items):
+    out = {}
+    for it in items or []:
+        k, sep, v = it.partition("=")
+        try:
+            out[k.strip()] = float(v)
+        except ValueError:
+            raise UsageError(f"--fix '{it}': expected NAME=VALUE, e.g. ct.eta=1.5") from None
+        if not sep:
+            raise UsageError(f"--fix '{it}': expected NAME=VALUE, e.g. ct.eta=1.5")
+    return out
+
+
+def fit_options(args):
+    from .fit import FitOptions
+    from .lm import LMOptions
+    from .model import Model
+    fixed = _fixed(args.fix)
+    Model(args.model, fixed=fixed)                  # clear error for a bad model before any work
+    return FitOptions(model=args.model, metric=args.metric, cosw=not args.no_cos,
+                      cutoff_deg=None if args.cutoff >= 90 else args.cutoff,
+                      real="double" if args.double else "float", device=args.device,
+                      global_method=args.global_method, n_candidates=args.candidates,
+                      n_starts=args.starts, seed=args.seed, fixed=fixed,
+                      lm=LMOptions(max_iter=args.max_iter))
+
+
+def cmd_fit_all(args):
+    from .run import fit_all
+    from .synth import demo_dir
+    if args.demo == (args.database is not None):
+        raise UsageError("give a database folder or --demo (not both)")
+    source = demo_dir() if args.demo else args.database
+    opts = fit_options(args)
+    log = (lambda s: None) if args.quiet else (lambda s: print(s, file=sys.stderr, flush=True))
+    report = fit_all(source, args.out, opts, batch=args.batch, export=args.export_merl,
+                     quiet=args.quiet, log=log, workers=args.workers, scheduler=args.scheduler) \
+        if (args.workers or args.scheduler) else \
+        fit_all(source, args.out, opts, batch=args.batch, export=args.export_merl, quiet=args.quiet, log=log)
+    n_ok = sum(r.success for r in report.results)
+    failed = [r for r in report.results if not r.success]
+    print(f"fitted {n_ok} materials in {report.seconds:.1f} s ({len(report.resumed)} already done, "
+          f"{len(failed)} failed, {len(report.skipped)} skipped); results in {args.out}/summary.csv")
+    for r in failed:
+        print(f"failed: {r.name}: {r.status}", file=sys.stderr)
+    for path, why in report.skipped.items():
+        print(f"skipped: {why}", file=sys.stderr)
+    return 0 if report.ok else 1
+
+
+def cmd_params(args):
+    from .model import Model
+    m = Model(args.model)
+    print(f"model {m.spec}: {m.n_params} parameters")
+    print(f"{'name':24s} {'lo':>10s} {'hi':>10s} {'default':>10s} {'space':>6s}  unit  meaning")
+    for s in m.slots:
+        p = s.param
+        print(f"{s.name:24s} {p.lo:10.3g} {p.hi:10.3g} {p.default:10.3g} {'log' if p.log else 'lin':>6s}  "
+              f"{p.unit or '-':5s} {p.doc}")
+    return 0
+
+
+def add_fit_arguments(p):
+    from .fit import GLOBAL_METHODS
+    from .metrics import METRICS
+    from .model import DEFAULT_MODEL
+    p.add_argument("--model", default=DEFAULT_MODEL, help=f"model string (default {DEFAULT_MODEL})")
+    p.add_argument("--metric", default="log", choices=METRICS, help="fit metric (default log)")
+    p.add_argument("--no-cos", action="store_true", help="no cos(theta_i) factor in the residual")
+    p.add_argument("--cutoff", type=float, default=80.0,
+                   help="leave out cells with theta_i or theta_o beyond this angle (degrees, default 80)")
+    p.add_argument("--double", action="store_true", help="float64 kernels and data (default float32)")
+    p.add_argument("--device", default=None, help="OpenCL device index or name (default: PoCL CPU)")
+    p.add_argument("--global", dest="global_method", default="lds", choices=GLOBAL_METHODS,
+                   help="global search (default lds: Sobol candidates + nlopt L-BFGS starts)")
+    p.add_argument("--candidates", type=int, default=256, help="Sobol candidates per material (lds)")
+    p.add_argument("--starts", type=int, default=4, help="local searches per material (lds)")
+    p.add_argument("--max-iter", type=int, default=60, help="Levenberg-Marquardt iterations (default 60)")
+    p.add_argument("--fix", action="append", metavar="NAME=VALUE", help="hold a parameter fixed")
+    p.add_argument("--seed", type=int, default=0)
+
+
 def build_parser():
     ap = argparse.ArgumentParser(prog="brdfcl", description=__doc__)
     ap.add_argument("--version", action="version", version=f"brdfcl {__version__}")
@@ -52,6 +134,22 @@ def build_parser():
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--materials", default=None, help="comma-separated subset of the demo materials")
     p.set_defaults(func=cmd_synth)
+
+    p = sub.add_parser("fit-all", help="fit every .binary of a folder (or --demo)")
+    p.add_argument("database", nargs="?", default=None, help="folder of MERL .binary files")
+    p.add_argument("--demo", action="store_true", help="fit the embedded demo database")
+    p.add_argument("--out", required=True, help="output folder (resumes what is already there)")
+    add_fit_arguments(p)
+    p.add_argument("--export-merl", action="store_true", help="write each fitted model as NAME.binary")
+    p.add_argument("--batch", type=int, default=100, help="materials per batch (all share each launch)")
+    p.add_argument("--workers", type=int, default=0, help="fit on a local Dask cluster of N workers")
+    p.add_argument("--scheduler", default=None, help="fit on the Dask cluster at this address")
+    p.add_argument("--quiet", action="store_true", help="no progress bar or stage messages")
+    p.set_defaults(func=cmd_fit_all)
+
+    p = sub.add_parser("params", help="list a model's parameters, bounds and units")
+    p.add_argument("model", nargs="?", default="diffuse+diffraction+ggx")
+    p.set_defaults(func=cmd_params)
     return ap
 
 

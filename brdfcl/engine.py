@@ -65,7 +65,6 @@ class CellSet:
     geom_host: np.ndarray
     blocks: list = field(default_factory=list)   # [(first material, count, data buffer)]
     geom_buf: object = None
-    data_host: np.ndarray | None = None
 
     @property
     def n_materials(self):
@@ -88,27 +87,41 @@ def select_cells(cutoff_deg=DEFAULT_CUTOFF_DEG, stride=1, offset=0):
     return idx[offset::stride] if stride > 1 else idx
 
 
-def build_cellset(ctx, queue, tables, index, dtype=np.float32, pad_to=16, keep_host=False,
-                  max_alloc=None):
-    """Upload geometry and per-material data for the given table cells.
+def extract(tables, indices, dtype=np.float32, on_error=None):
+    """Read each table once and keep its values at each index set: (names, [(n_mat, 3, n_i)]).
 
-    ``tables`` yields (name, stored-to-brdf callable or MerlTable); each table's
-    values are taken at ``index`` into a float32/float64 block, one table at a
-    time, so at most one float64 table is held."""
+    ``tables`` yields MerlTable objects or callables returning one (files are read lazily);
+    a table that raises is reported to ``on_error(item, exc)`` and skipped (re-raised if None)."""
+    names, parts = [], [[] for _ in indices]
+    for item in tables:
+        try:
+            t = item() if callable(item) else item
+            brdf = t.brdf(np.float64)
+        except Exception as e:
+            if on_error is None:
+                raise
+            on_error(item, e)
+            continue
+        names.append(t.name)
+        for lst, idx in zip(parts, indices):
+            lst.append(brdf[:, idx].astype(dtype))
+        del brdf
+    return names, [np.stack(p) if p else np.zeros((0, 3, idx.size), dtype) for p, idx in zip(parts, indices)]
+
+
+def build_cellset(ctx, names, index, data, dtype=np.float32, pad_to=16, weight_scale=None,
+                  max_alloc=None):
+    """Upload geometry and per-material data (n_mat, 3, n) for the given table cells."""
     g = table_geometry()
     n = index.size
-    n_pad = -(-n // pad_to) * pad_to
-    full = np.concatenate([index, np.full(n_pad - n, index[0])])
+    n_pad = max(pad_to, -(-n // pad_to) * pad_to)
+    full = np.concatenate([index, np.full(n_pad - n, index[0] if n else 0)])
     geom = np.stack([np.sin(g.theta_h[full]), np.cos(g.theta_h[full]), np.cos(g.theta_d[full]),
-                     g.cos_i[full], g.cos_o[full], g.weight[full]]).astype(dtype)
+                     g.cos_i[full], g.cos_o[full], g.weight[full]])
+    if weight_scale is not None:
+        geom[5, :n] *= weight_scale
+    geom = geom.astype(dtype)
     geom[5, n:] = 0
-    names, rows = [], []
-    for t in tables:
-        names.append(t.name)
-        vals = np.full((3, n_pad), np.nan, dtype=dtype)
-        vals[:, :n] = t.brdf(np.float64)[:, index] if n else 0
-        rows.append(vals)
-    data = np.stack(rows) if rows else np.zeros((0, 3, n_pad), dtype)
     mf = cl.mem_flags
     geom_buf = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=geom)
     per_mat = 3 * n_pad * np.dtype(dtype).itemsize
@@ -116,10 +129,10 @@ def build_cellset(ctx, queue, tables, index, dtype=np.float32, pad_to=16, keep_h
     per_block = max(1, int(max_alloc // per_mat))
     blocks = []
     for first in range(0, len(names), per_block):
-        chunk = np.ascontiguousarray(data[first:first + per_block])
+        chunk = np.full((min(per_block, len(names) - first), 3, n_pad), np.nan, dtype=dtype)
+        chunk[:, :, :n] = data[first:first + per_block]
         blocks.append((first, len(chunk), cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=chunk)))
-    return CellSet(names, index, n_pad, dtype, geom, blocks, geom_buf,
-                   data if keep_host else None)
+    return CellSet(list(names), index, n_pad, dtype, geom, blocks, geom_buf)
 
 
 class Engine:
@@ -138,14 +151,19 @@ class Engine:
         if key not in _PROGRAMS:
             _PROGRAMS[key] = cl.Program(self.ctx, self.source).build(options=["-cl-mad-enable"])
         self.program = _PROGRAMS[key]
-        self._kernels = {k: getattr(self.program, k) for k in ("loss", "grad", "jtj", "errors", "predict")}
+        self._kernels = {k: cl.Kernel(self.program, k) for k in ("loss", "grad", "jtj", "errors", "predict")}
         self.pairs = jtj_pairs(self.model)
 
     # --- data ------------------------------------------------------------------------------------
     def cellset(self, tables, index=None, cutoff_deg=DEFAULT_CUTOFF_DEG, **kw) -> CellSet:
+        """A cell set of the given tables (MerlTable objects) at the given cells."""
         index = select_cells(cutoff_deg) if index is None else np.asarray(index)
-        return build_cellset(self.ctx, self.queue, tables, index, self.dtype,
-                             pad_to=max(16, self.opt.vw), **kw)
+        names, (data,) = extract(tables, [index], self.dtype)
+        return self.upload(names, index, data, **kw)
+
+    def upload(self, names, index, data, **kw) -> CellSet:
+        """A cell set from values already extracted at ``index`` (see `extract`)."""
+        return build_cellset(self.ctx, names, index, data, self.dtype, pad_to=max(16, self.opt.vw), **kw)
 
     # --- launches --------------------------------------------------------------------------------
     def _params(self, values):

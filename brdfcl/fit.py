@@ -1,0 +1,265 @@
+"""Fitting a model to a whole database at once: global search, then local refinement.
+
+Data flow: tables -> cell sets (coarse and full, on the device) -> global search
+on the coarse set -> Levenberg-Marquardt on the full table -> `FitResult` per
+material.  Every stage batches all materials into each launch.
+
+Global search (``global_method``):
+* ``lds`` (default): Sobol candidates in the bounded box, evaluated for all
+  materials in one launch, then nlopt local searches (LD_LBFGS) from the best
+  few per material, in lockstep; a batched form of MLSL with low-discrepancy starts.
+* ``mlsl``: nlopt G_MLSL_LDS with LD_LBFGS local searches, in lockstep.
+* ``crs2``: nlopt GN_CRS2_LM, in lockstep.
+* ``none``: start the local refinement from the default values.
+"""
+from __future__ import annotations
+
+import time
+import zlib
+from dataclasses import asdict, dataclass, field
+
+import nlopt
+import numpy as np
+from scipy.stats import qmc
+
+from .engine import Engine, extract, select_cells
+from .geometry import DEFAULT_CUTOFF_DEG, table_geometry
+from .lm import LMOptions, levenberg_marquardt
+from .lockstep import Problem, run_lockstep
+from .merl import N_PD, N_TD
+from .model import DEFAULT_MODEL, Model
+
+GLOBAL_METHODS = ("lds", "mlsl", "crs2", "none")
+
+
+@dataclass
+class FitOptions:
+    model: str = DEFAULT_MODEL
+    metric: str = "log"
+    cosw: bool = True
+    cutoff_deg: float | None = DEFAULT_CUTOFF_DEG
+    real: str = "float"
+    device: str | None = None
+    global_method: str = "lds"
+    n_candidates: int = 256         # lds: Sobol candidates per material
+    n_starts: int = 4               # lds: local searches per material
+    local_maxeval: int = 200        # per local search (lds) / whole search (mlsl, crs2: x 10)
+    coarse_stride: int = 97         # coarse set: every n-th cell outside the peak region,
+    coarse_peak_bins: int = 8       # every peak_stride-th cell with theta_h index below peak_bins
+    coarse_peak_stride: int = 5
+    lm: LMOptions = field(default_factory=LMOptions)
+    seed: int = 0
+    fixed: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        if self.global_method not in GLOBAL_METHODS:
+            raise ValueError(f"global method '{self.global_method}'; valid: {', '.join(GLOBAL_METHODS)}")
+
+
+@dataclass
+class FitResult:
+    """One material's fit, in the spirit of scipy.optimize.OptimizeResult."""
+
+    name: str
+    model: str
+    metric: str
+    params: dict                     # natural values by parameter name
+    success: bool
+    status: str
+    loss: float                      # sum w r^2 in the fit metric, full table
+    errors: dict                     # rmse_l2, rmse_log, rmse_cbrt, rel_rmse
+    seconds: float                   # wall time until this material was finished (launches are shared)
+    nfev: int                        # evaluations of this material (coarse and full)
+    history: list                    # [(seconds, stage, rmse in the fit metric)]
+    bounds_hit: list
+    stages: dict                     # seconds per stage (shared by the batch)
+
+    def as_dict(self):
+        return asdict(self)
+
+
+def coarse_cells(full_index, stride, peak_bins, peak_stride):
+    """A coarse subset for the global search: denser near the specular peak, where sharp lobes
+    live in few theta_h bins.  Weights are scaled by the strides so its loss estimates the full one."""
+    th_idx = full_index // (N_TD * N_PD)
+    peak = th_idx < peak_bins
+    near = np.flatnonzero(peak)[::peak_stride]
+    rest = np.flatnonzero(~peak)[::stride]
+    idx = np.concatenate([near, rest])
+    scale = np.concatenate([np.full(near.size, float(peak_stride)), np.full(rest.size, float(stride))])
+    order = np.argsort(idx)
+    return full_index[idx[order]], scale[order]
+
+
+def material_seed(seed, name):
+    return (seed * 1000003 + zlib.crc32(name.encode())) % (2 ** 31)
+
+
+class Fitter:
+    """Compiled model + cell sets for one batch of materials."""
+
+    def __init__(self, opts: FitOptions, engine: Engine | None = None):
+        self.opts = opts
+        self.model = Model(opts.model, fixed=opts.fixed)
+        self.engine = engine or Engine(self.model, device=opts.device, real=opts.real,
+                                       metric=opts.metric, cosw=opts.cosw)
+        self.full_index = select_cells(opts.cutoff_deg)
+        self.coarse_index, self.coarse_scale = coarse_cells(
+            self.full_index, opts.coarse_stride, opts.coarse_peak_bins, opts.coarse_peak_stride)
+
+    # --- objective in x space -------------------------------------------------------------------
+    def _values(self, x):
+        return self.model.from_x(x)
+
+    def _grad_x(self, cs, x, mats):
+        v = self._values(x)
+        L, g = self.engine.grad(cs, v, mats)
+        return L, g * self.model.dvalue_dx(v)
+
+    def _jtj_x(self, cs, x, mats):
+        v = self._values(x)
+        L, r, H = self.engine.jtj(cs, v, mats)
+        s = self.model.dvalue_dx(v)
+        return L, r * s, H * s[:, :, None] * s[:, None, :]
+
+    # --- stages -----------------------------------------------------------------------------------
+    def global_search(self, cs, names, log):
+        m, o = self.model, self.opts
+        n = len(names)
+        lo, hi = m.x_lo, m.x_hi
+        x_def = np.tile(m.to_x(m.defaults()), (n, 1))
+        nfev = np.zeros(n, dtype=int)
+        if o.global_method == "none":
+            return x_def, nfev
+        if o.global_method == "lds":
+            sob = qmc.Sobol(m.n_free, scramble=True, seed=o.seed).random(o.n_candidates)
+            cand = np.vstack([m.to_x(m.defaults()), lo + sob * (hi - lo)])
+            nc = cand.shape[0]
+            L = self.engine.loss(cs, self._values(np.tile(cand, (n, 1))), np.repeat(np.arange(n), nc))
+            L = np.where(np.isfinite(L), L, np.inf).reshape(n, nc)
+            nfev += nc
+            best = np.argsort(L[:, 1:], axis=1)[:, :o.n_starts] + 1
+            log(f"global: {nc} Sobol candidates per material on {cs.index.size} cells; "
+                f"local searches from the defaults and the best {o.n_starts}")
+            starts = [(i, cand[j]) for i in range(n) for j in [0] + list(best[i])]
+            algo, budget = nlopt.LD_LBFGS, o.local_maxeval
+        else:
+            starts = [(i, x_def[i]) for i in range(n)]
+            algo = nlopt.G_MLSL_LDS if o.global_method == "mlsl" else nlopt.GN_CRS2_LM
+            budget = 10 * o.local_maxeval
+        problems = []
+        for i, x0 in starts:
+            opt = nlopt.opt(algo, m.n_free)
+            opt.set_lower_bounds(lo)
+            opt.set_upper_bounds(hi)
+            opt.set_maxeval(budget)
+            opt.set_ftol_rel(1e-7)
+            if algo == nlopt.G_MLSL_LDS:
+                loc = nlopt.opt(nlopt.LD_LBFGS, m.n_free)
+                loc.set_ftol_rel(1e-6)
+                loc.set_maxeval(o.local_maxeval // 2)
+                opt.set_local_optimizer(loc)
+            problems.append(Problem(opt, x0, material_seed(o.seed, names[i])))
+        mats_of = np.array([i for i, _ in starts])
+
+        def evaluate(xs, need, ids):
+            mats = mats_of[ids]
+            if need.any():
+                return self._grad_x(cs, xs, mats)
+            return self.engine.loss(cs, self._values(xs), mats), np.zeros_like(xs)
+        out = run_lockstep(problems, evaluate)
+        for (i, _), oc in zip(starts, out):
+            nfev[i] += oc.nfev
+        return [(i, oc.x, oc.f) for (i, _), oc in zip(starts, out)], nfev
+
+    def pick_starts(self, cs_full, outcomes, n, keep=3):
+        """The best local outcome per material judged on the full table (the coarse loss only ranks)."""
+        m = self.model
+        x = np.tile(m.to_x(m.defaults()), (n, 1))
+        if isinstance(outcomes, np.ndarray):
+            return x if outcomes.size == 0 else outcomes
+        by_mat = {}
+        for i, xi, f in outcomes:
+            by_mat.setdefault(i, []).append((f, xi))
+        rows, xs = [], []
+        for i, lst in by_mat.items():
+            lst.sort(key=lambda t: t[0])
+            for f, xi in lst[:keep]:
+                rows.append(i)
+                xs.append(xi)
+        L = self.engine.loss(cs_full, self._values(np.array(xs)), np.array(rows))
+        best = np.full(n, np.inf)
+        for i, xi, li in zip(rows, xs, L):
+            if np.isfinite(li) and li < best[i]:
+                best[i], x[i] = li, xi
+        return x
+
+    def fit(self, names, full_data, coarse_data, on_result=None, log=lambda s: None):
+        """Fit every material; ``on_result(FitResult)`` is called as each one finishes."""
+        m, o, eng = self.model, self.opts, self.engine
+        t0 = time.perf_counter()
+        n = len(names)
+        w_full = table_geometry().weight[self.full_index]
+        sw = np.array([np.sum(np.isfinite(d) * w_full) for d in full_data])   # sum of w over channels
+        cs_full = eng.upload(names, self.full_index, full_data)
+        cs_coarse = eng.upload(names, self.coarse_index, coarse_data, weight_scale=self.coarse_scale)
+        history = [[] for _ in range(n)]
+        outcomes, nfev = self.global_search(cs_coarse, names, log)
+        x0 = self.pick_starts(cs_full, outcomes, n)
+        t_global = time.perf_counter() - t0
+        L0 = eng.loss(cs_full, self._values(x0), np.arange(n))
+        for i in range(n):
+            history[i].append((t_global, "global", float(np.sqrt(L0[i] / sw[i]))))
+        results = [None] * n
+
+        def on_iter(it, x, L, running):
+            t = time.perf_counter() - t0
+            for i in np.flatnonzero(running):
+                history[i].append((t, "local", float(np.sqrt(L[i] / sw[i]))))
+
+        def on_done(rows, x, L, status):
+            t = time.perf_counter() - t0
+            v = self._values(x[rows])
+            err = eng.errors(cs_full, v, rows)
+            for j, i in enumerate(rows):
+                history[i].append((t, "local", float(np.sqrt(L[i] / sw[i]))))
+                ok = bool(np.isfinite(L[i]) and all(np.isfinite(e[j]) for e in err.values()))
+                xi = x[i]
+                hit = [m.names[k] for k, xx, a, b in zip(m.free_index, xi, m.x_lo, m.x_hi)
+                       if min(xx - a, b - xx) <= 1e-6 * max(1.0, abs(b - a))]
+                res = FitResult(names[i], m.spec, o.metric, m.as_dict(v[j]), ok,
+                                status[i] if ok else f"failed: {status[i]}, non-finite error",
+                                float(L[i]), {k: float(e[j]) for k, e in err.items()}, t,
+                                int(nfev[i] + lm_nfev[i]),
+                                history[i], hit, {"global": t_global})
+                results[i] = res
+                if on_result:
+                    on_result(res)
+
+        lm_nfev = np.zeros(n, dtype=int)
+
+        def jtj(xs, rows):
+            lm_nfev[rows] += 1
+            return self._jtj_x(cs_full, xs, rows)
+        log(f"local: Levenberg-Marquardt on {self.full_index.size} cells per material")
+        levenberg_marquardt(jtj, x0, m.x_lo, m.x_hi, o.lm, on_done=on_done, on_iter=on_iter)
+        t_total = time.perf_counter() - t0
+        for r in results:
+            r.stages["local"] = t_total - t_global
+            r.stages["total"] = t_total
+        return results
+
+
+def load_batch(items, fitter: Fitter, on_error=None):
+    """(names, full data, coarse data) for items that are MerlTables or callables returning one."""
+    names, (full, coarse) = extract(items, [fitter.full_index, fitter.coarse_index],
+                                    fitter.engine.dtype, on_error=on_error)
+    return names, full, coarse
+
+
+def fit_tables(tables, opts: FitOptions | None = None, **kw):
+    """Fit MerlTable objects in one batch; returns a list of FitResult."""
+    opts = opts or FitOptions(**kw)
+    f = Fitter(opts)
+    names, full, coarse = load_batch(tables, f)
+    return f.fit(names, full, coarse)
