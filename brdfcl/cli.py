@@ -70,10 +70,16 @@ def cmd_fit_all(args):
     source = demo_dir() if args.demo else args.database
     opts = fit_options(args)
     log = (lambda s: None) if args.quiet else (lambda s: print(s, file=sys.stderr, flush=True))
-    report = fit_all(source, args.out, opts, batch=args.batch, export=args.export_merl,
-                     quiet=args.quiet, log=log, workers=args.workers, scheduler=args.scheduler) \
-        if (args.workers or args.scheduler) else \
-        fit_all(source, args.out, opts, batch=args.batch, export=args.export_merl, quiet=args.quiet, log=log)
+    client = None
+    if args.workers or args.scheduler:
+        from .cluster import make_client
+        client = make_client(args.scheduler, args.workers)
+    try:
+        report = fit_all(source, args.out, opts, batch=args.batch, export=args.export_merl,
+                         quiet=args.quiet, log=log, client=client, select_lobes=args.select_lobes)
+    finally:
+        if client is not None:
+            client.close()
     n_ok = sum(r.success for r in report.results)
     failed = [r for r in report.results if not r.success]
     print(f"fitted {n_ok} materials in {report.seconds:.1f} s ({len(report.resumed)} already done, "
@@ -83,6 +89,21 @@ def cmd_fit_all(args):
     for path, why in report.skipped.items():
         print(f"skipped: {why}", file=sys.stderr)
     return 0 if report.ok else 1
+
+
+def cmd_analyze(args):
+    from .analyze import analyze
+    from .synth import demo_dir
+    if args.demo == (args.database is not None):
+        raise UsageError("give a database folder or --demo (not both)")
+    source = demo_dir() if args.demo else args.database
+    opts = fit_options(args)
+    log = (lambda s: None) if args.quiet else (lambda s: print(s, file=sys.stderr, flush=True))
+    res = analyze(source, args.out, opts, batch=args.batch, log=log, figures=not args.no_figures)
+    n = sum(a.verdict == "diffraction" for a in res)
+    print(f"analysed {len(res)} materials: {n} with diffraction, {len(res) - n} without; "
+          f"see {args.out}/analysis.csv and {args.out}/index.html")
+    return 0
 
 
 def cmd_params(args):
@@ -141,11 +162,23 @@ def build_parser():
     p.add_argument("--out", required=True, help="output folder (resumes what is already there)")
     add_fit_arguments(p)
     p.add_argument("--export-merl", action="store_true", help="write each fitted model as NAME.binary")
+    p.add_argument("--select-lobes", action="store_true",
+                   help="fit with and without each lobe and keep what the material needs (brdfcl analyze)")
     p.add_argument("--batch", type=int, default=100, help="materials per batch (all share each launch)")
     p.add_argument("--workers", type=int, default=0, help="fit on a local Dask cluster of N workers")
     p.add_argument("--scheduler", default=None, help="fit on the Dask cluster at this address")
     p.add_argument("--quiet", action="store_true", help="no progress bar or stage messages")
     p.set_defaults(func=cmd_fit_all)
+
+    p = sub.add_parser("analyze", help="gradient test, wavelength check and lobe selection per material")
+    p.add_argument("database", nargs="?", default=None, help="folder of MERL .binary files")
+    p.add_argument("--demo", action="store_true", help="analyse the embedded demo database")
+    p.add_argument("--out", required=True, help="output folder")
+    add_fit_arguments(p)
+    p.add_argument("--batch", type=int, default=100)
+    p.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
+    p.add_argument("--quiet", action="store_true")
+    p.set_defaults(func=cmd_analyze)
 
     p = sub.add_parser("params", help="list a model's parameters, bounds and units")
     p.add_argument("model", nargs="?", default="diffuse+diffraction+ggx")

@@ -60,13 +60,16 @@ def read_results(out_dir):
     return docs
 
 
-def is_finished(out_dir, name, model_spec, metric):
+def is_finished(out_dir, name, model_spec, metric, selected=False):
+    """True if NAME.json holds a successful fit of this model and metric (with --select-lobes:
+    a successful fit whose lobes were selected, whatever they are)."""
     p = Path(out_dir) / f"{name}.json"
     try:
         d = json.loads(p.read_text())
     except (OSError, ValueError):
         return False
-    return d.get("success") and d.get("model") == model_spec and d.get("metric") == metric
+    same_model = ("selected_by" in d) if selected else (d.get("model") == model_spec and "selected_by" not in d)
+    return bool(d.get("success")) and same_model and d.get("metric") == metric
 
 
 def write_summary(out_dir):

@@ -71,7 +71,7 @@ class _Progress:
 
 
 def fit_all(source, out=None, options: FitOptions | None = None, batch=100, export=False,
-            quiet=True, log=None, client=None, **kw) -> RunReport:
+            quiet=True, log=None, client=None, select_lobes=False, **kw) -> RunReport:
     """Fit every material of a database; write results to ``out`` if given.
 
     ``source``: folder, file or list of files.  ``options`` or keyword arguments
@@ -87,12 +87,14 @@ def fit_all(source, out=None, options: FitOptions | None = None, batch=100, expo
         out = check_output_dir(out)
     model_spec, todo = Model(opts.model, fixed=opts.fixed).spec, []
     for p in paths:
-        if out is not None and is_finished(out, material_name(p), model_spec, opts.metric):
+        if out is not None and is_finished(out, material_name(p), model_spec, opts.metric, select_lobes):
             report.resumed.append(material_name(p))
         else:
             todo.append(p)
     if report.resumed:
         log(f"resuming: {len(report.resumed)} materials already finished in {out}")
+    if select_lobes:
+        return _fit_selected(todo, out, opts, batch, export, report, log, t0)
     if client is not None:
         from .cluster import fit_on_cluster
         return fit_on_cluster(client, todo, out, opts, batch, export, report, log, quiet, t0)
@@ -152,3 +154,27 @@ def _writer(out, fitter, export, report, progress):
             write_summary(out)
         progress.done(res)
     return handle
+
+
+def _fit_selected(paths, out, opts, batch, export, report, log, t0):
+    """--select-lobes: the lobe comparison of brdfcl.analyze decides each material's model;
+    its final fit (without the diffraction lobe where the verdict is 'none') is the result."""
+    from .analyze import analyze
+
+    def done(a):
+        res = a.final
+        report.results.append(res)
+        if out is not None:
+            model = Model(res.model)
+            write_result(out, result_document(res, model, {"selected_by": "lobe comparison",
+                                                           "verdict": a.verdict}))
+            if export:
+                fitter = Fitter(FitOptions(**{**opts.__dict__, "model": res.model, "fixed": {}}))
+                idx = np.flatnonzero(table_geometry().above_horizon)
+                cs = fitter.engine.upload([], idx, np.zeros((0, 3, idx.size)))
+                v = np.array([res.params[n] for n in model.names])
+                export_merl(Path(out) / f"{res.name}.binary", fitter.engine.predict(cs, v)[0], idx)
+            write_summary(out)
+    analyze(paths, None, opts, batch=batch, log=log, figures=False, on_material=done)
+    report.seconds = time.perf_counter() - t0
+    return report

@@ -20,14 +20,15 @@ from .merl import N_CELLS, write_merl
 from .model import Model
 
 DEMO = {
+    # Expected verdicts of `brdfcl analyze` on these: diffraction for the smooth metal only.
     # smooth metal: sharp specular peak with a strong, wide diffraction halo around it
     "synth-smooth-metal": ("diffuse+diffraction:hp+ggx:smith:schlick", {
         "diffuse.rho": (0.004, 0.003, 0.002), "diffraction.rho": (0.03, 0.025, 0.018),
         "diffraction.a": 0.8, "ct.rho": (0.9, 0.8, 0.6), "ct.alpha": 0.02, "ct.F0": (0.9, 0.8, 0.5)}),
-    # rough metal: broad Beckmann lobe, weaker and wider diffraction
-    "synth-rough-metal": ("diffuse+diffraction:hp+beckmann:smith:schlick", {
-        "diffuse.rho": (0.01, 0.01, 0.012), "diffraction.rho": (0.01, 0.009, 0.008),
-        "diffraction.a": 2.5, "ct.rho": (0.7, 0.65, 0.6), "ct.alpha": 0.3, "ct.F0": (0.8, 0.75, 0.7)}),
+    # rough metal: a broad Beckmann lobe and no diffraction (Cook-Torrance explains it all)
+    "synth-rough-metal": ("diffuse+beckmann:smith:schlick", {
+        "diffuse.rho": (0.01, 0.01, 0.012), "ct.rho": (0.7, 0.65, 0.6), "ct.alpha": 0.3,
+        "ct.F0": (0.8, 0.75, 0.7)}),
     # smooth plastic: coloured diffuse base, white dielectric coat, no diffraction at all
     "synth-smooth-plastic": ("diffuse+ggx:smith:dielectric", {
         "diffuse.rho": (0.5, 0.06, 0.04), "ct.rho": (1.0, 1.0, 1.0), "ct.alpha": 0.03, "ct.eta": 1.5}),

@@ -1,0 +1,193 @@
+"""Which physical effect makes which part of each measured BRDF (SPEC section 5).
+
+For every material: the gradient test (brdfcl.gradient_test), the wavelength check
+(brdfcl.wavelength), and the lobe comparison (brdfcl.selection: fits with and without
+the diffraction and Cook-Torrance lobes, sharing one load of the data).  Each test is
+necessary, none sufficient (a broad Cook-Torrance lobe can tilt the level lines like
+f does, and a misfitting CT lobe can be patched by a diffraction lobe), so the verdict
+is ``diffraction`` only when the lobe comparison keeps the diffraction lobe and neither
+the gradient test (score >= 0.5) nor the wavelength check (ratio >= 1.5, see
+brdfcl.wavelength) contradicts it where it can decide; ``none`` otherwise.  A material with verdict ``none`` gets its
+final fit without the diffraction lobe.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .fit import FitOptions, Fitter, load_batch
+from .geometry import bin_centres, directions
+from .gradient_test import GradientMap, gradient_test
+from .lobes.cells import Cells
+from .merl import read_merl
+from .model import Model
+from .run import _Reader, database_paths
+from .selection import select, variants
+from .wavelength import WavelengthCheck, wavelength_check
+
+MIN_DECIDABLE = 30            # gradient test cells below which it is inconclusive
+
+
+@dataclass
+class MaterialAnalysis:
+    name: str
+    verdict: str                          # "diffraction" or "none"
+    selected: str                         # variant key chosen by the lobe comparison
+    final_model: str
+    fits: dict                            # variant key -> FitResult
+    specs: dict                           # variant key -> model spec
+    penalised: dict
+    gradient: GradientMap
+    wavelength: WavelengthCheck
+    peak_share_diffraction: float         # share of the fitted peak value from the diffraction lobe
+    slices: dict = field(default_factory=dict)   # name -> (3, 90, 90) phi_d ~ 90 deg images
+
+    @property
+    def final(self):
+        return next(r for k, r in self.fits.items() if self.specs[k] == self.final_model)
+
+    def row(self):
+        g, w = self.gradient, self.wavelength
+        band = g.th_range_deg[1]
+        out = {"material": self.name, "verdict": self.verdict, "selected_lobes": self.specs[self.selected],
+               "final_model": self.final_model}
+        for c, ch in enumerate("rgb"):
+            out[f"grad_score_{ch}"] = _fmt(g.score[c])
+        out["grad_cells"] = int(g.n_cells.sum())
+        out["grad_band_deg_g"] = f"{band[0]:.1f}-{band[1]:.1f}" if band else ""
+        out["wavelength_spread"] = _fmt(w.spread)
+        out["wavelength_spread_f0"] = _fmt(w.spread_f0)
+        out["wavelength_ratio"] = _fmt(w.ratio)
+        for k in ("full", "no_diffraction", "no_ct"):
+            r = self.fits.get(k)
+            out[f"rmse_log_{k}"] = _fmt(r.errors["rmse_log"]) if r else ""
+            out[f"penalised_{k}"] = _fmt(self.penalised.get(k, np.nan)) if r else ""
+        out["peak_share_diffraction"] = _fmt(self.peak_share_diffraction)
+        return out
+
+
+def _fmt(x):
+    return "" if x is None or not np.isfinite(x) else f"{x:.5g}"
+
+
+def slice_cells(phi_bins=slice(80, 100)):
+    """Cells of the phi_d ~ 90 deg slice (90 * 90 * 20), for model images matching the data slice."""
+    th, td, pd = bin_centres()
+    TH, TD, PD = np.meshgrid(th, td, pd[phi_bins], indexing="ij")
+    wi, wo = directions(TH.ravel(), TD.ravel(), PD.ravel())
+    ok = (wi[:, 2] > 0) & (wo[:, 2] > 0)
+    return Cells.from_directions(wi[ok], wo[ok]), ok, TH.shape
+
+
+def lobe_images(spec, params):
+    """(3, 90, 90) images of each lobe group at phi_d ~ 90: diffuse+diffraction, CT, full."""
+    cells, ok, shape = slice_cells()
+    out = {}
+    model = Model(spec)
+    v = np.array([params[n] for n in model.names])
+    groups = {"diffuse_diffraction": ("diffuse", "diffraction"), "ct": ("ct",), "full": None}
+    for key, keep in groups.items():
+        vv = v.copy()
+        if keep is not None:
+            for i, s in enumerate(model.slots):
+                if s.lobe not in keep and ".rho_" in s.name:
+                    vv[i] = 0.0
+        p = np.full((3, ok.size), np.nan)
+        p[:, ok] = model.reference(cells, vv, jacobian=False)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            n = np.isfinite(p.reshape(3, *shape)).sum(-1)
+            img = np.nansum(p.reshape(3, *shape), axis=-1) / np.maximum(n, 1)
+        out[key] = np.where(n > 0, img, np.nan)
+    return out
+
+
+def peak_share(spec, params):
+    """Share of the fitted value at the specular peak (first theta_h bin, theta_d ~ 10 deg) due to diffraction."""
+    model = Model(spec)
+    if not model.has("diffraction"):
+        return 0.0
+    th, td, pd = bin_centres()
+    wi, wo = directions(np.array([th[0]]), np.array([td[10]]), np.array([pd[90]]))
+    cells = Cells.from_directions(wi, wo)
+    v = np.array([params[n] for n in model.names])
+    only = v.copy()
+    for i, s in enumerate(model.slots):
+        if s.lobe != "diffraction" and ".rho_" in s.name:
+            only[i] = 0.0
+    total = model.reference(cells, v, jacobian=False).sum()
+    return float(model.reference(cells, only, jacobian=False).sum() / max(total, 1e-300))
+
+
+def analyze_material(name, brdf, fits, specs) -> MaterialAnalysis:
+    errors = {k: r.errors["rmse_log"] for k, r in fits.items() if r.success}
+    sel, pen = select(errors, {k: specs[k] for k in errors})
+    gm = gradient_test(brdf)
+    full = fits["full"]
+    diffuse = [full.params.get(f"diffuse.rho_{c}", 0.0) / np.pi for c in "rgb"]
+    wl = wavelength_check(brdf, diffuse, Model(specs["full"]).lambdas)
+    lobe_says = "diffraction" in specs[sel]
+    decidable = gm.n_cells.sum() >= MIN_DECIDABLE
+    grad_says = (gm.mean_score >= 0.5) if decidable else None
+    wl_says = wl.consistent
+    verdict = "diffraction" if lobe_says and grad_says is not False and wl_says is not False else "none"
+    if verdict == "none" and lobe_says:
+        final_key = "no_diffraction" if "no_diffraction" in fits else sel
+    else:
+        final_key = sel
+    return MaterialAnalysis(name, verdict, sel, specs[final_key], fits, specs, pen, gm, wl,
+                            peak_share(specs["full"], full.params))
+
+
+def analyze(source, out=None, options: FitOptions | None = None, batch=100, log=None, figures=True,
+            on_material=None):
+    """Analyse every material of a database; writes analysis.csv, maps, figures and index.html."""
+    from . import report
+    opts = options or FitOptions()
+    log = log or (lambda s: None)
+    specs = variants(Model(opts.model).spec)
+    if set(specs) != {"full", "no_diffraction", "no_ct"}:
+        raise ValueError(f"analysis needs a model with diffuse, diffraction and Cook-Torrance lobes, "
+                         f"got '{opts.model}'")
+    paths = database_paths(source)
+    fitters = {k: Fitter(FitOptions(**{**opts.__dict__, "model": s, "fixed": {}})) for k, s in specs.items()}
+    base = fitters["full"]
+    results = []
+    if out is not None:
+        report.prepare(out)
+    for s in range(0, len(paths), batch):
+        part = paths[s:s + batch]
+        names, full, coarse = load_batch([_Reader(p) for p in part], base,
+                                         on_error=lambda item, e: log(f"skipped: {e}"))
+        fits = {}
+        for k, f in fitters.items():
+            t = time.perf_counter()
+            fits[k] = {r.name: r for r in f.fit(names, full, coarse)}
+            log(f"fitted {len(names)} materials with {specs[k]} in {time.perf_counter() - t:.1f} s")
+        del full, coarse
+        for name, path in zip(names, [p for p in part if _stem(p) in set(names)]):
+            brdf = read_merl(path).brdf()
+            a = analyze_material(name, brdf, {k: fits[k][name] for k in fits}, specs)
+            if figures or out is not None:
+                a.slices = {"measured": _measured_slice(brdf), **lobe_images(specs["full"], a.fits["full"].params)}
+            if out is not None:
+                report.write_material(out, a, figures=figures)
+            results.append(a)
+            if on_material:
+                on_material(a)
+            log(f"{name}: {a.verdict} (lobes {a.specs[a.selected]}, gradient score "
+                f"{a.gradient.mean_score:.2f}, wavelength ratio {a.wavelength.ratio:.2f})")
+        if out is not None:
+            report.write_index(out, results)
+    return results
+
+
+def _stem(p):
+    from .merl import material_name
+    return material_name(p)
+
+
+def _measured_slice(brdf):
+    from .gradient_test import phi90_slice
+    return phi90_slice(brdf)[0]
