@@ -143,6 +143,10 @@ def build_parser():
     ap.add_argument("--version", action="version", version=f"brdfcl {__version__}")
     ap.add_argument("--debug", action="store_true", help="show tracebacks")
     sub = ap.add_subparsers(dest="cmd", required=True)
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help="show tracebacks")
+    add = sub.add_parser
+    sub.add_parser = lambda *a, **kw: add(*a, parents=[common], **kw)
 
     p = sub.add_parser("info", help="list OpenCL platforms and devices")
     p.add_argument("--device", default=None, help="device index or name (default: PoCL CPU)")

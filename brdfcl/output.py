@@ -9,6 +9,7 @@ import csv
 import io
 import json
 import os
+import re
 from pathlib import Path
 
 import numpy as np
@@ -26,6 +27,19 @@ def atomic_write_text(path, text):
     tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
     tmp.write_text(text)
     os.replace(tmp, path)
+
+
+_TEMPORARY = re.compile(r"\.tmp\d+$|\.tmp\.(exr|png)$")
+
+
+def remove_stale_temporaries(out_dir):
+    """Temporary files left by a run killed mid-write (``*.tmpPID``; final names are never partial)."""
+    for p in Path(out_dir).iterdir():
+        if p.is_file() and _TEMPORARY.search(p.name):
+            try:
+                p.unlink()
+            except OSError:
+                pass
 
 
 def result_document(res, model: Model, extra=None) -> dict:

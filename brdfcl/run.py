@@ -19,7 +19,8 @@ from .fit import FitOptions, Fitter, load_batch
 from .geometry import table_geometry
 from .merl import MerlError, list_database, material_name, read_merl
 from .model import Model
-from .output import export_merl, is_finished, result_document, write_result, write_summary
+from .output import (export_merl, is_finished, remove_stale_temporaries, result_document, write_result,
+                     write_summary)
 
 
 @dataclass
@@ -85,6 +86,7 @@ def fit_all(source, out=None, options: FitOptions | None = None, batch=100, expo
     fitter = None
     if out is not None:
         out = check_output_dir(out)
+        remove_stale_temporaries(out)
     model_spec, todo = Model(opts.model, fixed=opts.fixed).spec, []
     for p in paths:
         if out is not None and is_finished(out, material_name(p), model_spec, opts.metric, select_lobes):
