@@ -50,6 +50,8 @@ class FitOptions:
     lm: LMOptions = field(default_factory=LMOptions)
     seed: int = 0
     fixed: dict = field(default_factory=dict)
+    probe_dead_lobes: bool = True   # revive a lobe that ends at zero amplitude at `probes` shapes
+    probes: int = 4
 
     def __post_init__(self):
         if self.global_method not in GLOBAL_METHODS:
@@ -116,10 +118,27 @@ class Fitter:
         L, g = self.engine.grad(cs, v, mats)
         return L, g * self.model.dvalue_dx(v)
 
-    def _jtj_x(self, cs, x, mats):
-        v = self._values(x)
+    # Levenberg-Marquardt space: the model is linear in its amplitudes, so LM steps them in
+    # natural units (Gauss-Newton is exact in them, and an amplitude at its lower bound is not
+    # stuck on the flat of a log scale); shapes (alpha, a, ...) stay in log space.
+    @property
+    def _lin(self):
+        return np.array([".rho_" in self.model.names[i] for i in self.model.free_index])
+
+    def to_lm(self, x):
+        y = np.array(x, dtype=np.float64)
+        y[..., self._lin] = np.exp(y[..., self._lin])
+        return y
+
+    def from_lm(self, y):
+        x = np.array(y, dtype=np.float64)
+        x[..., self._lin] = np.log(np.maximum(x[..., self._lin], 1e-300))
+        return x
+
+    def _jtj_lm(self, cs, y, mats):
+        v = self._values(self.from_lm(y))
         L, r, H = self.engine.jtj(cs, v, mats)
-        s = self.model.dvalue_dx(v)
+        s = np.where(self._lin, 1.0, self.model.dvalue_dx(v))
         return L, r * s, H * s[:, :, None] * s[:, None, :]
 
     # --- stages -----------------------------------------------------------------------------------
@@ -133,7 +152,8 @@ class Fitter:
             return x_def, nfev
         if o.global_method == "lds":
             sob = qmc.Sobol(m.n_free, scramble=True, seed=o.seed).random(o.n_candidates)
-            cand = np.vstack([m.to_x(m.defaults()), lo + sob * (hi - lo)])
+            slo, shi = m.search_x_lo, m.search_x_hi
+            cand = np.vstack([m.to_x(m.defaults()), slo + sob * (shi - slo)])
             nc = cand.shape[0]
             L = self.engine.loss(cs, self._values(np.tile(cand, (n, 1))), np.repeat(np.arange(n), nc))
             L = np.where(np.isfinite(L), L, np.inf).reshape(n, nc)
@@ -194,6 +214,49 @@ class Fitter:
                 best[i], x[i] = li, xi
         return x
 
+    def dead_lobes(self, x):
+        """Lobes whose amplitudes all ended at the lower bound while they have a free shape: with no
+        amplitude their shape has no gradient, so a local search cannot bring them back."""
+        m = self.model
+        cols = {n: k for k, n in enumerate(m.names[i] for i in m.free_index)}
+        dead = []
+        for lb in m.lobes:
+            amp = [cols[s.name] for s in lb.slots() if s.name in cols and ".rho_" in s.name]
+            shape = [cols[s.name] for s in lb.slots() if s.name in cols and ".rho_" not in s.name
+                     and s.param.log]
+            if amp and shape and all(x[k] <= m.x_lo[k] + 1e-6 for k in amp):
+                dead.append((amp, shape))
+        return dead
+
+    def _probe(self, queued, cs_full, ylo, yhi, lm_nfev, finish, log):
+        """Revive each dead lobe at PROBES shapes spread over its search range, refine, keep the best."""
+        m, o = self.model, self.opts
+        slo, shi = m.search_x_lo, m.search_x_hi
+        starts, owner = [], []
+        for q, (i, x, L, status) in enumerate(queued):
+            for amp, shape in self.dead_lobes(x):
+                for k in range(o.probes):
+                    xs = x.copy()
+                    xs[amp] = 0.5 * (slo[amp] + shi[amp])
+                    xs[shape] = slo[shape] + (k + 0.5) / o.probes * (shi[shape] - slo[shape])
+                    starts.append(xs)
+                    owner.append(q)
+        owner = np.array(owner)
+        mats = np.array([queued[q][0] for q in owner])
+        log(f"local: {len(queued)} materials with a lobe at zero amplitude, {len(starts)} probes")
+
+        def jtj(ys, rows):
+            lm_nfev[mats[rows]] += 1
+            return self._jtj_lm(cs_full, ys, mats[rows])
+        st = levenberg_marquardt(jtj, self.to_lm(np.array(starts)), ylo, yhi, o.lm)
+        xs = self.from_lm(st.x)
+        best = {q: (queued[q][2], queued[q][1], queued[q][3]) for q in range(len(queued))}
+        for j, q in enumerate(owner):
+            if np.isfinite(st.loss[j]) and st.loss[j] < best[q][0]:
+                best[q] = (st.loss[j], xs[j], st.status[j] + ", after reviving a lobe")
+        finish([queued[q][0] for q in best], np.array([b[1] for b in best.values()]),
+               np.array([b[0] for b in best.values()]), [b[2] for b in best.values()])
+
     def fit(self, names, full_data, coarse_data, on_result=None, log=lambda s: None):
         """Fit every material; ``on_result(FitResult)`` is called as each one finishes."""
         m, o, eng = self.model, self.opts, self.engine
@@ -217,32 +280,43 @@ class Fitter:
             for i in np.flatnonzero(running):
                 history[i].append((t, "local", float(np.sqrt(L[i] / sw[i]))))
 
-        def on_done(rows, x, L, status):
+        lm_nfev = np.zeros(n, dtype=int)
+        queued = []
+
+        def finish(rows, x, L, status):
             t = time.perf_counter() - t0
-            v = self._values(x[rows])
+            rows = np.asarray(rows)
+            v = self._values(x)
             err = eng.errors(cs_full, v, rows)
             for j, i in enumerate(rows):
-                history[i].append((t, "local", float(np.sqrt(L[i] / sw[i]))))
-                ok = bool(np.isfinite(L[i]) and all(np.isfinite(e[j]) for e in err.values()))
-                xi = x[i]
-                hit = [m.names[k] for k, xx, a, b in zip(m.free_index, xi, m.x_lo, m.x_hi)
+                history[i].append((t, "local", float(np.sqrt(L[j] / sw[i]))))
+                ok = bool(np.isfinite(L[j]) and all(np.isfinite(e[j]) for e in err.values()))
+                hit = [m.names[k] for k, xx, a, b in zip(m.free_index, x[j], m.x_lo, m.x_hi)
                        if min(xx - a, b - xx) <= 1e-6 * max(1.0, abs(b - a))]
                 res = FitResult(names[i], m.spec, o.metric, m.as_dict(v[j]), ok,
-                                status[i] if ok else f"failed: {status[i]}, non-finite error",
-                                float(L[i]), {k: float(e[j]) for k, e in err.items()}, t,
-                                int(nfev[i] + lm_nfev[i]),
-                                history[i], hit, {"global": t_global})
+                                status[j] if ok else f"failed: {status[j]}, non-finite error",
+                                float(L[j]), {k: float(e[j]) for k, e in err.items()}, t,
+                                int(nfev[i] + lm_nfev[i]), history[i], hit, {"global": t_global})
                 results[i] = res
                 if on_result:
                     on_result(res)
 
-        lm_nfev = np.zeros(n, dtype=int)
+        def on_done(rows, y, L, status):
+            x = self.from_lm(y[rows])
+            direct = [j for j, i in enumerate(rows) if not (o.probe_dead_lobes and self.dead_lobes(x[j]))]
+            queued.extend((rows[j], x[j], L[rows[j]], status[rows[j]]) for j in range(len(rows))
+                          if j not in direct)
+            if direct:
+                finish(rows[direct], x[direct], L[rows[direct]], [status[rows[j]] for j in direct])
 
-        def jtj(xs, rows):
+        def jtj(ys, rows):
             lm_nfev[rows] += 1
-            return self._jtj_x(cs_full, xs, rows)
+            return self._jtj_lm(cs_full, ys, rows)
         log(f"local: Levenberg-Marquardt on {self.full_index.size} cells per material")
-        levenberg_marquardt(jtj, x0, m.x_lo, m.x_hi, o.lm, on_done=on_done, on_iter=on_iter)
+        ylo, yhi = self.to_lm(m.x_lo), self.to_lm(m.x_hi)
+        levenberg_marquardt(jtj, self.to_lm(x0), ylo, yhi, o.lm, on_done=on_done, on_iter=on_iter)
+        if queued:
+            self._probe(queued, cs_full, ylo, yhi, lm_nfev, finish, log)
         t_total = time.perf_counter() - t0
         for r in results:
             r.stages["local"] = t_total - t_global

@@ -163,6 +163,15 @@ class Model:
         return np.where(self.log[self.free_index], v, 1.0)
 
     @property
+    def search_x_lo(self):
+        """The global search's candidate box in x space (each Param's search range)."""
+        return self.to_x(np.array([s.param.search_range[0] for s in self.slots]))
+
+    @property
+    def search_x_hi(self):
+        return self.to_x(np.array([s.param.search_range[1] for s in self.slots]))
+
+    @property
     def x_lo(self):
         return self.to_x(self.lo)
 

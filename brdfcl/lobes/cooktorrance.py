@@ -4,7 +4,7 @@ from __future__ import annotations
 from .lobe import Lobe
 from .spec import REGISTRY, Param
 
-RHO_S = Param("rho", 1e-6, 10.0, 0.5, log=True, per_channel=True,
+RHO_S = Param("rho", 1e-6, 10.0, 0.5, log=True, per_channel=True, search=(1e-2, 5.0),
               doc="specular amplitude (times F; <= 1 for a physical surface)")
 
 

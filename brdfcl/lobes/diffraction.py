@@ -7,7 +7,7 @@ from __future__ import annotations
 from .lobe import Lobe
 from .spec import REGISTRY, Param
 
-RHO_W = Param("rho", 1e-8, 1e4, 0.01, log=True, per_channel=True, unit="um^4",
+RHO_W = Param("rho", 1e-8, 1e4, 0.01, log=True, per_channel=True, unit="um^4", search=(1e-5, 1.0),
               doc="diffraction amplitude (peak value times lambda^4)")
 LAMBDAS = (0.645, 0.526, 0.444)
 """Default wavelengths (um) of the R, G, B channels."""

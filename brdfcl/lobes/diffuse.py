@@ -6,7 +6,7 @@ import numpy as np
 from .lobe import Lobe
 from .spec import Param
 
-RHO_D = Param("rho", 1e-6, 1.0, 0.1, log=True, per_channel=True, doc="diffuse albedo")
+RHO_D = Param("rho", 1e-6, 1.0, 0.1, log=True, per_channel=True, doc="diffuse albedo", search=(1e-3, 1.0))
 
 
 class Diffuse(Lobe):

@@ -10,7 +10,7 @@ from scipy.special import gammaln, psi
 
 from .spec import Param, Term, register
 
-ALPHA = Param("alpha", 1e-4, 1.0, 0.1, log=True, unit="",
+ALPHA = Param("alpha", 1e-4, 1.0, 0.1, log=True, unit="", search=(1e-3, 1.0),
               doc="roughness (slope scale); 1e-4 is a mirror at MERL's resolution")
 
 

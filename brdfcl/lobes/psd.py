@@ -5,7 +5,7 @@ import numpy as np
 
 from .spec import Param, Term, register
 
-A = Param("a", 0.1, 1e2, 1.0, log=True, unit="1/um",
+A = Param("a", 0.1, 1e2, 1.0, log=True, unit="1/um", search=(0.1, 20.0),
           doc="PSD corner frequency (width of the diffraction lobe); the lower bound keeps the lobe "
               "off the specular peak (half width >= ~1.5 deg at 0.526 um), the talk's separation")
 

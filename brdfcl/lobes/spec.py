@@ -22,10 +22,17 @@ class Param:
     unit: str = ""
     doc: str = ""
     per_channel: bool = False     # one value per colour channel (amplitudes, F0, eta/k of metals)
+    search: tuple | None = None   # where the global search draws candidates (default: the bounds)
 
     def __post_init__(self):
         assert self.lo < self.hi and self.lo <= self.default <= self.hi, self
         assert not self.log or self.lo > 0, self
+        if self.search is not None:
+            assert self.lo <= self.search[0] < self.search[1] <= self.hi, self
+
+    @property
+    def search_range(self):
+        return self.search or (self.lo, self.hi)
 
 
 @dataclass(frozen=True)
