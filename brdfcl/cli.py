@@ -62,14 +62,19 @@ def fit_options(args):
                       lm=LMOptions(max_iter=args.max_iter))
 
 
-def cmd_fit_all(args):
-    from .run import fit_all
+def _database_job(args):
+    """(source folder, FitOptions, log) shared by fit-all and analyze."""
     from .synth import demo_dir
     if args.demo == (args.database is not None):
         raise UsageError("give a database folder or --demo (not both)")
     source = demo_dir() if args.demo else args.database
-    opts = fit_options(args)
     log = (lambda s: None) if args.quiet else (lambda s: print(s, file=sys.stderr, flush=True))
+    return source, fit_options(args), log
+
+
+def cmd_fit_all(args):
+    from .run import fit_all
+    source, opts, log = _database_job(args)
     client = None
     if args.workers or args.scheduler:
         from .cluster import make_client
@@ -93,12 +98,7 @@ def cmd_fit_all(args):
 
 def cmd_analyze(args):
     from .analyze import analyze
-    from .synth import demo_dir
-    if args.demo == (args.database is not None):
-        raise UsageError("give a database folder or --demo (not both)")
-    source = demo_dir() if args.demo else args.database
-    opts = fit_options(args)
-    log = (lambda s: None) if args.quiet else (lambda s: print(s, file=sys.stderr, flush=True))
+    source, opts, log = _database_job(args)
     res = analyze(source, args.out, opts, batch=args.batch, log=log, figures=not args.no_figures)
     n = sum(a.verdict == "diffraction" for a in res)
     print(f"analysed {len(res)} materials: {n} with diffraction, {len(res) - n} without; "

@@ -8,6 +8,7 @@ checked against the truth.
 """
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 from pathlib import Path
@@ -92,15 +93,24 @@ def write_synth(out_dir, materials=None, noise=0.0, missing=0.0, seed=0, log=pri
         if log:
             log(f"{name}: {model.spec}")
     tmp = out_dir / "truth.json.tmp"
-    tmp.write_text(json.dumps({"noise": noise, "missing": missing, "seed": seed,
+    tmp.write_text(json.dumps({"noise": noise, "missing": missing, "seed": seed, "definition": _fingerprint(),
                                "materials": truth}, indent=1))
     os.replace(tmp, out_dir / "truth.json")
     return truth
 
 
+def _fingerprint():
+    return hashlib.sha1(repr(sorted(DEMO.items())).encode()).hexdigest()[:16]
+
+
 def demo_dir() -> Path:
-    """The demo database, generated once into the user's cache (35 MB per material)."""
+    """The demo database, generated into the user's cache (35 MB per material) on first use and
+    again whenever the demo definition changes."""
     base = Path(os.environ.get("BRDFCL_CACHE", Path.home() / ".cache" / "brdfcl")) / "demo"
-    if not (base / "truth.json").exists() or any(not (base / f"{n}.binary").exists() for n in DEMO):
+    try:
+        current = json.loads((base / "truth.json").read_text()).get("definition") == _fingerprint()
+    except (OSError, ValueError):
+        current = False
+    if not current or any(not (base / f"{n}.binary").exists() for n in DEMO):
         write_synth(base, log=None)
     return base
