@@ -19,11 +19,11 @@ import numpy as np
 
 from .fit import FitOptions, Fitter, load_batch
 from .geometry import bin_centres, directions
-from .gradient_test import GradientMap, gradient_test
+from .gradient_test import GradientMap, gradient_test, phi90_slice
 from .lobes.cells import Cells
-from .merl import read_merl
+from .merl import material_name, read_merl
 from .model import Model
-from .run import _Reader, database_paths
+from .run import FileReader, database_paths
 from .selection import select, variants
 from .wavelength import WavelengthCheck, wavelength_check
 
@@ -158,7 +158,7 @@ def analyze(source, out=None, options: FitOptions | None = None, batch=100, log=
         report.prepare(out)
     for s in range(0, len(paths), batch):
         part = paths[s:s + batch]
-        names, full, coarse = load_batch([_Reader(p) for p in part], base,
+        names, full, coarse = load_batch([FileReader(p) for p in part], base,
                                          on_error=lambda item, e: log(f"skipped: {e}"))
         fits = {}
         for k, f in fitters.items():
@@ -166,11 +166,11 @@ def analyze(source, out=None, options: FitOptions | None = None, batch=100, log=
             fits[k] = {r.name: r for r in f.fit(names, full, coarse)}
             log(f"fitted {len(names)} materials with {specs[k]} in {time.perf_counter() - t:.1f} s")
         del full, coarse
-        for name, path in zip(names, [p for p in part if _stem(p) in set(names)]):
+        for name, path in zip(names, [p for p in part if material_name(p) in set(names)]):
             brdf = read_merl(path).brdf()
             a = analyze_material(name, brdf, {k: fits[k][name] for k in fits}, specs)
             if figures or out is not None:
-                a.slices = {"measured": _measured_slice(brdf), **lobe_images(specs["full"], a.fits["full"].params)}
+                a.slices = {"measured": phi90_slice(brdf)[0], **lobe_images(specs["full"], a.fits["full"].params)}
             if out is not None:
                 report.write_material(out, a, figures=figures)
             results.append(a)
@@ -182,12 +182,3 @@ def analyze(source, out=None, options: FitOptions | None = None, batch=100, log=
             report.write_index(out, results)
     return results
 
-
-def _stem(p):
-    from .merl import material_name
-    return material_name(p)
-
-
-def _measured_slice(brdf):
-    from .gradient_test import phi90_slice
-    return phi90_slice(brdf)[0]

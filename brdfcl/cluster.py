@@ -16,7 +16,7 @@ import os
 import time
 
 from .fit import FitOptions, Fitter, load_batch
-from .run import _Reader, _writer
+from .run import FileReader, result_writer
 
 
 def make_client(scheduler=None, workers=0):
@@ -52,7 +52,7 @@ def fit_chunk(paths, opts: FitOptions):
 
     def on_error(item, e):
         skipped[str(item)] = str(e)
-    names, full, coarse = load_batch([_Reader(p) for p in paths], fitter, on_error)
+    names, full, coarse = load_batch([FileReader(p) for p in paths], fitter, on_error)
     results = fitter.fit(names, full, coarse) if names else []
     return results, skipped
 
@@ -61,14 +61,14 @@ def fit_on_cluster(client, paths, out, opts, batch, export, report, log, quiet, 
     """Spread ``paths`` over the cluster's workers; fill ``report`` as chunks complete."""
     from dask.distributed import as_completed
 
-    from .run import _Progress
+    from .run import Progress
     from .output import write_summary
     n_workers = max(1, len(client.scheduler_info().get("workers", {})))
     size = max(1, min(batch, math.ceil(len(paths) / (2 * n_workers))))
     chunks = [paths[i:i + size] for i in range(0, len(paths), size)]
     log(f"cluster: {len(chunks)} chunks of up to {size} materials on {n_workers} workers")
     futures = [client.submit(fit_chunk, c, opts, pure=False, retries=2) for c in chunks]
-    progress = _Progress(len(paths), quiet)
+    progress = Progress(len(paths), quiet)
     writer = None
     try:
         for fut in as_completed(futures):
@@ -77,7 +77,7 @@ def fit_on_cluster(client, paths, out, opts, batch, export, report, log, quiet, 
             for p, why in skipped.items():
                 log(f"skipped: {why}")
             if results and writer is None:
-                writer = _writer(out, _ClientSide(opts, export), export, report, progress)
+                writer = result_writer(out, _ClientSide(opts, export), export, report, progress)
             for r in results:
                 writer(r)
     finally:

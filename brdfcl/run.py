@@ -54,7 +54,7 @@ def check_output_dir(out):
     return out
 
 
-class _Progress:
+class Progress:
     def __init__(self, total, quiet):
         self.bar = None
         if not quiet and sys.stderr.isatty() and total:
@@ -100,7 +100,7 @@ def fit_all(source, out=None, options: FitOptions | None = None, batch=100, expo
     if client is not None:
         from .cluster import fit_on_cluster
         return fit_on_cluster(client, todo, out, opts, batch, export, report, log, quiet, t0)
-    progress = _Progress(len(todo), quiet)
+    progress = Progress(len(todo), quiet)
     try:
         for s in range(0, len(todo), batch):
             fitter = fitter or Fitter(opts)
@@ -110,11 +110,11 @@ def fit_all(source, out=None, options: FitOptions | None = None, batch=100, expo
                 path = getattr(item, "path", None) or str(item)
                 report.skipped[path] = str(e)
                 log(f"skipped: {e}")
-            names, full, coarse = load_batch([_Reader(p) for p in part], fitter, on_error)
+            names, full, coarse = load_batch([FileReader(p) for p in part], fitter, on_error)
             if not names:
                 continue
             log(f"batch of {len(names)} materials loaded")
-            handle = _writer(out, fitter, export, report, progress)
+            handle = result_writer(out, fitter, export, report, progress)
             fitter.fit(names, full, coarse, on_result=handle, log=log)
     finally:
         progress.close()
@@ -124,7 +124,7 @@ def fit_all(source, out=None, options: FitOptions | None = None, batch=100, expo
     return report
 
 
-class _Reader:
+class FileReader:
     """Reads one file when called; named by its path so that errors can say which."""
 
     def __init__(self, path):
@@ -139,7 +139,7 @@ class _Reader:
         return self.path
 
 
-def _writer(out, fitter, export, report, progress):
+def result_writer(out, fitter, export, report, progress):
     export_cs = []
 
     def handle(res):
