@@ -188,6 +188,16 @@ def run_torch(path, model_spec, metric, idx, adam_steps=150, lbfgs_iter=40):
     return rec
 
 
+def load_curves(path):
+    recs = {}
+    with open(path) as f:
+        for row in csv.DictReader(f):
+            key = (row["method"], row["setting"], row["material"])
+            rec = recs.setdefault(key, Recorder(*key, 0))
+            rec.rows.append(tuple(float(row[k]) for k in ("seconds", "rmse_log", "rmse_l2", "rmse_cbrt")))
+    return list(recs.values())
+
+
 def best_curve(rec, col=1):
     t = np.array([r[0] for r in rec.rows])
     e = np.array([r[col] for r in rec.rows])
@@ -215,6 +225,8 @@ def main(argv=None):
                     help="measured whole-database brdfcl fit time to put beside the extrapolation "
                          "(default: measure it now with fit-all on --data)")
     ap.add_argument("--stability", action="store_true", help="also run the numerical stability report")
+    ap.add_argument("--report-only", action="store_true",
+                    help="rebuild bench_fit.md and the plot from --out/fit_curves.csv without fitting")
     ap.add_argument("--out", default=str(HERE / "results"))
     args = ap.parse_args(argv)
 
@@ -227,6 +239,15 @@ def main(argv=None):
         paths = [data / f"{n}.binary" for n in names if (data / f"{n}.binary").exists()]
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
+    if args.report_only:
+        recs = load_curves(out / "fit_curves.csv")
+        names = sorted({r.key[2] for r in recs if r.key[0] == "brdfcl"})
+        batch = {r.key[1]: 0.0 for r in recs if r.key[0] == "brdfcl"}
+        for r in recs:
+            if r.key[0] == "brdfcl":
+                batch[r.key[1]] = max(batch[r.key[1]], r.rows[-1][0])
+        report(recs, batch, [data / f"{n}.binary" for n in names], all_paths, args, out)
+        return 0
     model = Model(args.model)
     idx = Fitter(FitOptions(model=args.model)).full_index
     recs, batch_seconds = [], {}
@@ -320,6 +341,20 @@ def report(recs, batch_seconds, paths, all_paths, args, out):
             if n:
                 lines.append(f"| {method} | {setting} | {len(ts)}/{n} | {np.median(ts) if ts else float('nan'):.2f} | "
                              f"{np.median(sp) if sp else float('nan'):.1f}x | {np.median(fr):.3f} |")
+        lines += ["", "Whole set: time until every material has reached the scipy fit's final rmse_log "
+                  "(brdfcl: one batch, so the latest material; scipy and PyTorch: one material after "
+                  "another, so the sum):", "",
+                  "| method | setting | all reached | time for the set (s) | speed-up vs scipy |", "|---|---|---|---|---|"]
+        t_sc = sum(time_to(r, r.rows[-1][1] * (1 + 1e-3)) for r in scipy.values())
+        for (method, setting), d in sorted(by.items()):
+            tt = [time_to(r, scipy[nm].rows[-1][1] * (1 + 1e-3)) for nm, r in d.items() if nm in scipy]
+            if len(tt) != len(scipy):
+                continue
+            reached = all(np.isfinite(tt))
+            t_set = (max(tt) if method == "brdfcl" else sum(tt)) if reached else float("nan")
+            lines.append(f"| {method} | {setting} | {'yes' if reached else 'no'} | {t_set:.1f} | "
+                         f"{t_sc / t_set:.0f}x |" if reached else
+                         f"| {method} | {setting} | no ({sum(np.isfinite(tt))}/{len(tt)}) | - | - |")
         n_s = len(scipy)
         t_scipy = sum(r.rows[-1][0] for r in scipy.values())
         per = t_scipy / n_s
