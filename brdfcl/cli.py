@@ -68,7 +68,9 @@ def _database_job(args):
     if args.demo == (args.database is not None):
         raise UsageError("give a database folder or --demo (not both)")
     source = demo_dir() if args.demo else args.database
-    log = (lambda s: None) if args.quiet else (lambda s: print(s, file=sys.stderr, flush=True))
+    from tqdm import tqdm
+    # tqdm.write keeps stage messages from tearing the progress bar on a terminal
+    log = (lambda s: None) if args.quiet else (lambda s: tqdm.write(s, file=sys.stderr))
     return source, fit_options(args), log
 
 
