@@ -78,7 +78,7 @@ def render(model: Model, opt: KernelOptions) -> str:
             if t.kernel not in files:
                 files.append(t.kernel)
     cols = set()
-    pairs = sorted({(a, b) for ch in range(3) for a in em.jac[ch] for b in em.jac[ch] if b >= a})
+    pairs = jtj_pairs(model)
     for ch in range(3):
         cols |= set(em.jac[ch])
     assert cols == set(range(model.n_free)), "every free parameter needs a Jacobian column"
@@ -94,13 +94,12 @@ def render(model: Model, opt: KernelOptions) -> str:
         lines=em.lines, value=em.value, jac=em.jac, pairs=pairs)
 
 
-def n_outputs(model: Model, kernel: str) -> int:
-    em = emit(model)
-    pairs = {(a, b) for ch in range(3) for a in em.jac[ch] for b in em.jac[ch] if b >= a}
-    return {"loss": 1, "grad": 1 + model.n_free, "jtj": 1 + model.n_free + len(pairs),
-            "errors": 5}[kernel]
-
-
 def jtj_pairs(model: Model):
+    """The (a, b), a <= b, entries of J^T J that are non-zero in some channel, in kernel order."""
     em = emit(model)
     return sorted({(a, b) for ch in range(3) for a in em.jac[ch] for b in em.jac[ch] if b >= a})
+
+
+def n_outputs(model: Model, n_pairs: int) -> dict:
+    """Partial sums each kernel writes per evaluation and work-group."""
+    return {"loss": 1, "grad": 1 + model.n_free, "jtj": 1 + model.n_free + n_pairs, "errors": 5}

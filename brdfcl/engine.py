@@ -153,6 +153,7 @@ class Engine:
         self.program = _PROGRAMS[key]
         self._kernels = {k: cl.Kernel(self.program, k) for k in ("loss", "grad", "jtj", "errors", "predict")}
         self.pairs = jtj_pairs(self.model)
+        self.n_out = n_outputs(self.model, len(self.pairs))
 
     # --- data ------------------------------------------------------------------------------------
     def cellset(self, tables, index=None, cutoff_deg=DEFAULT_CUTOFF_DEG, **kw) -> CellSet:
@@ -173,7 +174,7 @@ class Engine:
     def _run(self, kname, cs: CellSet, values, mats):
         values = np.atleast_2d(values)
         mats = np.broadcast_to(np.asarray(mats, dtype=np.int32), (values.shape[0],))
-        nout = n_outputs(self.model, kname)
+        nout = self.n_out[kname]
         n_vec = cs.n_cells // self.opt.vw
         ng = max(1, -(-n_vec // self.opt.chunk))
         out = np.zeros((values.shape[0], nout))

@@ -106,6 +106,7 @@ class Fitter:
         self.engine = engine or Engine(self.model, device=opts.device, real=opts.real,
                                        metric=opts.metric, cosw=opts.cosw)
         self.full_index = select_cells(opts.cutoff_deg)
+        self._lin = np.array([".rho_" in self.model.names[i] for i in self.model.free_index])
         self.coarse_index, self.coarse_scale = coarse_cells(
             self.full_index, opts.coarse_stride, opts.coarse_peak_bins, opts.coarse_peak_stride)
 
@@ -121,10 +122,6 @@ class Fitter:
     # Levenberg-Marquardt space: the model is linear in its amplitudes, so LM steps them in
     # natural units (Gauss-Newton is exact in them, and an amplitude at its lower bound is not
     # stuck on the flat of a log scale); shapes (alpha, a, ...) stay in log space.
-    @property
-    def _lin(self):
-        return np.array([".rho_" in self.model.names[i] for i in self.model.free_index])
-
     def to_lm(self, x):
         y = np.array(x, dtype=np.float64)
         y[..., self._lin] = np.exp(y[..., self._lin])
