@@ -140,6 +140,16 @@ def add_fit_arguments(p):
     p.add_argument("--seed", type=int, default=0)
 
 
+def add_database_arguments(p, verb, out_help):
+    """What fit-all and analyze share: the database (or --demo), the output, the fit options."""
+    p.add_argument("database", nargs="?", default=None, help="folder of MERL .binary files")
+    p.add_argument("--demo", action="store_true", help=f"{verb} the embedded demo database")
+    p.add_argument("--out", required=True, help=out_help)
+    add_fit_arguments(p)
+    p.add_argument("--batch", type=int, default=100, help="materials per batch (all share each launch)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar or stage messages")
+
+
 def build_parser():
     ap = argparse.ArgumentParser(prog="brdfcl", description=__doc__)
     ap.add_argument("--version", action="version", version=f"brdfcl {__version__}")
@@ -163,27 +173,17 @@ def build_parser():
     p.set_defaults(func=cmd_synth)
 
     p = sub.add_parser("fit-all", help="fit every .binary of a folder (or --demo)")
-    p.add_argument("database", nargs="?", default=None, help="folder of MERL .binary files")
-    p.add_argument("--demo", action="store_true", help="fit the embedded demo database")
-    p.add_argument("--out", required=True, help="output folder (resumes what is already there)")
-    add_fit_arguments(p)
+    add_database_arguments(p, "fit", "output folder (resumes what is already there)")
     p.add_argument("--export-merl", action="store_true", help="write each fitted model as NAME.binary")
     p.add_argument("--select-lobes", action="store_true",
                    help="fit with and without each lobe and keep what the material needs (brdfcl analyze)")
-    p.add_argument("--batch", type=int, default=100, help="materials per batch (all share each launch)")
     p.add_argument("--workers", type=int, default=0, help="fit on a local Dask cluster of N workers")
     p.add_argument("--scheduler", default=None, help="fit on the Dask cluster at this address")
-    p.add_argument("--quiet", action="store_true", help="no progress bar or stage messages")
     p.set_defaults(func=cmd_fit_all)
 
     p = sub.add_parser("analyze", help="gradient test, wavelength check and lobe selection per material")
-    p.add_argument("database", nargs="?", default=None, help="folder of MERL .binary files")
-    p.add_argument("--demo", action="store_true", help="analyse the embedded demo database")
-    p.add_argument("--out", required=True, help="output folder")
-    add_fit_arguments(p)
-    p.add_argument("--batch", type=int, default=100)
+    add_database_arguments(p, "analyse", "output folder")
     p.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
-    p.add_argument("--quiet", action="store_true")
     p.set_defaults(func=cmd_analyze)
 
     p = sub.add_parser("params", help="list a model's parameters, bounds and units")

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import math
 import os
-import time
 
 from .fit import FitOptions, Fitter, load_batch
 from .run import FileReader, result_writer
@@ -61,8 +60,7 @@ def fit_on_cluster(client, paths, out, opts, batch, export, report, log, quiet, 
     """Spread ``paths`` over the cluster's workers; fill ``report`` as chunks complete."""
     from dask.distributed import as_completed
 
-    from .run import Progress
-    from .output import write_summary
+    from .run import Progress, finish_run
     n_workers = max(1, len(client.scheduler_info().get("workers", {})))
     size = max(1, min(batch, math.ceil(len(paths) / (2 * n_workers))))
     chunks = [paths[i:i + size] for i in range(0, len(paths), size)]
@@ -81,10 +79,7 @@ def fit_on_cluster(client, paths, out, opts, batch, export, report, log, quiet, 
             for r in results:
                 writer(r)
     finally:
-        progress.close()
-        if out is not None:
-            write_summary(out)
-    report.seconds = time.perf_counter() - t0
+        finish_run(progress, out, report, t0)
     return report
 
 

@@ -117,11 +117,16 @@ def fit_all(source, out=None, options: FitOptions | None = None, batch=100, expo
             handle = result_writer(out, fitter, export, report, progress)
             fitter.fit(names, full, coarse, on_result=handle, log=log)
     finally:
-        progress.close()
-        if out is not None:
-            write_summary(out)
-    report.seconds = time.perf_counter() - t0
+        finish_run(progress, out, report, t0)
     return report
+
+
+def finish_run(progress, out, report, t0):
+    """Close the progress bar, write summary.csv from what is on disk, time the run."""
+    progress.close()
+    if out is not None:
+        write_summary(out)
+    report.seconds = time.perf_counter() - t0
 
 
 class FileReader:

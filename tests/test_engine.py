@@ -5,7 +5,7 @@ import pytest
 from brdfcl.engine import Engine, select_cells
 from brdfcl.geometry import table_geometry
 from brdfcl.merl import read_merl
-from brdfcl.metrics import METRICS, errors, loss_grad, transform
+from brdfcl.metrics import METRICS, errors, transform
 
 SPECS = ["diffuse+diffraction+ggx",
          "diffuse+diffraction:abc:conductor+beckmann:smith-hc:dielectric",

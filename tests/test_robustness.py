@@ -1,6 +1,5 @@
 """Bad input, interrupted runs and extreme data: clear errors, nothing lost, nothing half-written."""
 import json
-import os
 import signal
 import subprocess
 import sys

@@ -8,7 +8,7 @@ the optimiser's vector, exports, docs) is derived from these descriptions.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Callable
 
 
