@@ -112,11 +112,12 @@ def cmd_params(args):
     from .model import Model
     m = Model(args.model)
     print(f"model {m.spec}: {m.n_params} parameters")
-    print(f"{'name':24s} {'lo':>10s} {'hi':>10s} {'default':>10s} {'space':>6s}  unit  meaning")
+    print(f"{'name':24s} {'lo':>9s} {'hi':>9s} {'default':>9s} {'search':>17s} {'space':>5s}  unit  meaning")
     for s in m.slots:
         p = s.param
-        print(f"{s.name:24s} {p.lo:10.3g} {p.hi:10.3g} {p.default:10.3g} {'log' if p.log else 'lin':>6s}  "
-              f"{p.unit or '-':5s} {p.doc}")
+        lo, hi = p.search_range
+        print(f"{s.name:24s} {p.lo:9.3g} {p.hi:9.3g} {p.default:9.3g} {f'{lo:.3g}..{hi:.3g}':>17s} "
+              f"{'log' if p.log else 'lin':>5s}  {p.unit or '-':5s} {p.doc}")
     return 0
 
 
