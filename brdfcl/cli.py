@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 
 from . import __version__
@@ -202,6 +203,9 @@ def main(argv=None):
     except KeyboardInterrupt:
         print("brdfcl: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:                     # output piped into `head` and the like
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
     except Exception as e:  # one line unless --debug
         if debug:
             raise
