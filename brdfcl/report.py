@@ -136,17 +136,26 @@ def write_index(out, analyses):
             "wavelength_ratio", "rmse_log_full", "rmse_log_no_diffraction", "rmse_log_no_ct",
             "peak_share_diffraction"]
     h = ["<!doctype html><meta charset='utf-8'><title>brdfcl analysis</title>",
-         "<style>body{font-family:sans-serif}td,th{border:1px solid #ccc;padding:3px;font-size:12px}"
-         "img{height:160px}.diffraction{background:#fde8d8}.none{background:#e3eefc}</style>",
+         "<style>body{font-family:sans-serif;margin:1em}td,th{border:1px solid #ccc;padding:2px 5px;"
+         "font-size:12px}table{border-collapse:collapse}.diffraction{background:#fde8d8}"
+         ".none{background:#e3eefc}.figs img{width:32%;vertical-align:top}h2{margin-bottom:0.2em}</style>",
          "<h1>Diffraction in measured BRDFs: per-material verdicts</h1>",
-         "<p>Gradient test (angle between the data gradient and grad f at phi_d ~ 90 deg), wavelength check "
-         "(ratio &lt; 1: channels collapse against f_c) and lobe comparison (penalised rmse_log). "
-         "Figures from brdfcl analyze.</p><table><tr>"]
-    h += [f"<th>{html.escape(c)}</th>" for c in cols] + ["<th>figures</th></tr>"]
+         "<p>Gradient test: share of the decidable wide-angle cells whose data gradient at phi_d ~ 90 deg "
+         "is closer to grad f than to theta_h = const. Wavelength check: spread of the channels against "
+         "f_c over their spread without the wavelength (&lt; 1 collapses; &ge; 1.5 contradicts). Lobe "
+         "comparison: penalised rmse_log with and without each lobe. Peak share: part of the fitted "
+         "value at the specular peak carried by the diffraction lobe.</p><table><tr>"]
+    h += [f"<th>{html.escape(c)}</th>" for c in cols] + ["</tr>"]
     for a, r in zip(analyses, rows):
-        h.append(f"<tr class='{r['verdict']}'>" + "".join(f"<td>{html.escape(str(r[c]))}</td>" for c in cols))
-        figs = "".join(f"<a href='figures/{a.name}_{k}.png'><img src='figures/{a.name}_{k}.png'></a>"
-                       for k in ("gradient", "wavelength", "components"))
-        h.append(f"<td>{figs}</td></tr>")
+        cells = [f"<a href='#{html.escape(a.name)}'>{html.escape(a.name)}</a>"]
+        cells += [html.escape(str(r[c])) for c in cols[1:]]
+        h.append(f"<tr class='{r['verdict']}'>" + "".join(f"<td>{c}</td>" for c in cells) + "</tr>")
     h.append("</table>")
+    for a, r in zip(analyses, rows):
+        h.append(f"<h2 id='{html.escape(a.name)}'>{html.escape(a.name)}: {r['verdict']}</h2>"
+                 f"<p>lobes kept: {html.escape(r['selected_lobes'])}; final model: "
+                 f"{html.escape(r['final_model'])}</p><div class='figs'>")
+        h += [f"<a href='figures/{a.name}_{k}.png'><img src='figures/{a.name}_{k}.png' alt='{k}'></a>"
+              for k in ("gradient", "wavelength", "components")]
+        h.append("</div>")
     atomic_write_text(out / "index.html", "\n".join(h))
