@@ -140,13 +140,14 @@ class Fitter:
 
     # --- stages -----------------------------------------------------------------------------------
     def global_search(self, cs, names, log):
+        """Local optima on the coarse set: ([(material, x, coarse loss)], evaluations per material)."""
         m, o = self.model, self.opts
         n = len(names)
         lo, hi = m.x_lo, m.x_hi
         x_def = np.tile(m.to_x(m.defaults()), (n, 1))
         nfev = np.zeros(n, dtype=int)
         if o.global_method == "none":
-            return x_def, nfev
+            return [(i, x_def[i], np.inf) for i in range(n)], nfev
         if o.global_method == "lds":
             sob = qmc.Sobol(m.n_free, scramble=True, seed=o.seed).random(o.n_candidates)
             slo, shi = m.search_x_lo, m.search_x_hi
@@ -193,8 +194,6 @@ class Fitter:
         """The best local outcome per material judged on the full table (the coarse loss only ranks)."""
         m = self.model
         x = np.tile(m.to_x(m.defaults()), (n, 1))
-        if isinstance(outcomes, np.ndarray):
-            return x if outcomes.size == 0 else outcomes
         by_mat = {}
         for i, xi, f in outcomes:
             by_mat.setdefault(i, []).append((f, xi))
