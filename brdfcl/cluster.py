@@ -15,7 +15,7 @@ import math
 import os
 
 from .fit import FitOptions, Fitter, load_batch
-from .run import FileReader, result_writer
+from .run import FileReader, Models, result_writer
 
 
 def make_client(scheduler=None, workers=0):
@@ -67,32 +67,16 @@ def fit_on_cluster(client, paths, out, opts, batch, export, report, log, quiet, 
     log(f"cluster: {len(chunks)} chunks of up to {size} materials on {n_workers} workers")
     futures = [client.submit(fit_chunk, c, opts, pure=False, retries=2) for c in chunks]
     progress = Progress(len(paths), quiet)
-    writer = None
+    writer = result_writer(out, Models(opts), export, report, progress)    # engine built only to export
     try:
         for fut in as_completed(futures):
             results, skipped = fut.result()
             report.skipped.update(skipped)
             for p, why in skipped.items():
                 log(f"skipped: {why}")
-            if results and writer is None:
-                writer = result_writer(out, _ClientSide(opts, export), export, report, progress)
             for r in results:
                 writer(r)
     finally:
         finish_run(progress, out, report, t0)
     return report
 
-
-class _ClientSide:
-    """What the writer needs on the client: the model, and an engine only when exporting."""
-
-    def __init__(self, opts, export):
-        from .model import Model
-        self.model = Model(opts.model, fixed=opts.fixed)
-        self._opts, self._engine = opts, None
-
-    @property
-    def engine(self):
-        if self._engine is None:
-            self._engine = Fitter(self._opts).engine
-        return self._engine

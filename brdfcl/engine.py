@@ -220,6 +220,16 @@ class Engine:
         return {"rmse_l2": np.sqrt(o[:, 0] / sw), "rmse_log": np.sqrt(o[:, 1] / sw),
                 "rmse_cbrt": np.sqrt(o[:, 2] / sw), "rel_rmse": np.sqrt(o[:, 0] / np.maximum(o[:, 3], 1e-300))}
 
+    def tabulate(self, values):
+        """Model values (3, N_CELLS) over the whole table for one parameter vector, NaN below the
+        horizon (for exporting a fit as a MERL file); the table's geometry is uploaded once."""
+        if getattr(self, "_table_cs", None) is None:
+            idx = np.flatnonzero(table_geometry().above_horizon)
+            self._table_cs = self.upload([], idx, np.zeros((0, 3, idx.size), self.dtype))
+        out = np.full((3, table_geometry().weight.size), np.nan)
+        out[:, self._table_cs.index] = self.predict(self._table_cs, values)[0]
+        return out
+
     def predict(self, cs, values):
         """Model values (n, 3, cells of the set) for each parameter vector."""
         values = np.atleast_2d(values)

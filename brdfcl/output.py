@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from . import __version__
-from .merl import N_CELLS, write_merl
+from .merl import write_merl
 from .model import Model
 
 SUMMARY_COLUMNS = ["material", "model", "metric", "seconds", "evaluations", "rmse_log", "rmse_l2",
@@ -105,8 +105,6 @@ def write_summary(out_dir):
     atomic_write_text(Path(out_dir) / "summary.csv", buf.getvalue())
 
 
-def export_merl(path, table_values, index):
-    """Write model values (3, n) at table cells ``index`` as a MERL file (-1 elsewhere)."""
-    full = np.full((3, N_CELLS), np.nan)
-    full[:, index] = table_values
-    write_merl(path, full)
+def export_fit(path, engine, params):
+    """Write a fitted model (params by name) as a MERL table over the whole table."""
+    write_merl(path, engine.tabulate(np.array([params[n] for n in engine.model.names])))

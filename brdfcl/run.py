@@ -13,13 +13,12 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import numpy as np
 
+from .engine import Engine
 from .fit import FitOptions, Fitter, load_batch
-from .geometry import table_geometry
 from .merl import MerlError, list_database, material_name, read_merl
 from .model import Model
-from .output import (export_merl, is_finished, remove_stale_temporaries, result_document, write_result,
+from .output import (export_fit, is_finished, remove_stale_temporaries, result_document, write_result,
                      write_summary)
 
 
@@ -114,7 +113,7 @@ def fit_all(source, out=None, options: FitOptions | None = None, batch=100, expo
             if not names:
                 continue
             log(f"batch of {len(names)} materials loaded")
-            handle = result_writer(out, fitter, export, report, progress)
+            handle = result_writer(out, Models(opts, fitter.engine), export, report, progress)
             fitter.fit(names, full, coarse, on_result=handle, log=log)
     finally:
         finish_run(progress, out, report, t0)
@@ -144,20 +143,37 @@ class FileReader:
         return self.path
 
 
-def result_writer(out, fitter, export, report, progress):
-    export_cs = []
+class Models:
+    """Model, and compiled engine on demand, per model spec: what writing and exporting results
+    need.  The fitted model carries the run's fixed parameters; selected sub-models have none."""
 
-    def handle(res):
+    def __init__(self, opts, engine=None):
+        self.opts = opts
+        main = Model(opts.model, fixed=opts.fixed)
+        self._models = {main.spec: main}
+        self._engines = {main.spec: engine} if engine is not None else {}
+
+    def model(self, spec):
+        if spec not in self._models:
+            self._models[spec] = Model(spec)
+        return self._models[spec]
+
+    def engine(self, spec):
+        if spec not in self._engines:
+            o = self.opts
+            self._engines[spec] = Engine(self.model(spec), device=o.device, real=o.real, metric=o.metric,
+                                         cosw=o.cosw)
+        return self._engines[spec]
+
+
+def result_writer(out, models: Models, export, report, progress):
+    """Record each result; with an output folder, write NAME.json (and NAME.binary) and summary.csv."""
+    def handle(res, extra=None):
         report.results.append(res)
         if out is not None:
-            write_result(out, result_document(res, fitter.model))
+            write_result(out, result_document(res, models.model(res.model), extra))
             if export:
-                if not export_cs:
-                    idx = np.flatnonzero(table_geometry().above_horizon)
-                    export_cs.append(fitter.engine.upload([], idx, np.zeros((0, 3, idx.size))))
-                cs = export_cs[0]
-                v = np.array([res.params[n] for n in fitter.model.names])
-                export_merl(Path(out) / f"{res.name}.binary", fitter.engine.predict(cs, v)[0], cs.index)
+                export_fit(Path(out) / f"{res.name}.binary", models.engine(res.model), res.params)
             write_summary(out)
         progress.done(res)
     return handle
@@ -167,21 +183,8 @@ def _fit_selected(paths, out, opts, batch, export, report, log, t0):
     """--select-lobes: the lobe comparison of brdfcl.analyze decides each material's model;
     its final fit (without the diffraction lobe where the verdict is 'none') is the result."""
     from .analyze import analyze
-
-    def done(a):
-        res = a.final
-        report.results.append(res)
-        if out is not None:
-            model = Model(res.model)
-            write_result(out, result_document(res, model, {"selected_by": "lobe comparison",
-                                                           "verdict": a.verdict}))
-            if export:
-                fitter = Fitter(FitOptions(**{**opts.__dict__, "model": res.model, "fixed": {}}))
-                idx = np.flatnonzero(table_geometry().above_horizon)
-                cs = fitter.engine.upload([], idx, np.zeros((0, 3, idx.size)))
-                v = np.array([res.params[n] for n in model.names])
-                export_merl(Path(out) / f"{res.name}.binary", fitter.engine.predict(cs, v)[0], idx)
-            write_summary(out)
-    analyze(paths, None, opts, batch=batch, log=log, figures=False, on_material=done)
+    write = result_writer(out, Models(opts), export, report, Progress(0, True))
+    analyze(paths, None, opts, batch=batch, log=log, figures=False,
+            on_material=lambda a: write(a.final, {"selected_by": "lobe comparison", "verdict": a.verdict}))
     report.seconds = time.perf_counter() - t0
     return report
