@@ -13,7 +13,7 @@ final fit without the diffraction lobe.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -151,7 +151,7 @@ def analyze(source, out=None, options: FitOptions | None = None, batch=100, log=
         raise ValueError(f"analysis needs a model with diffuse, diffraction and Cook-Torrance lobes, "
                          f"got '{opts.model}'")
     paths = database_paths(source)
-    fitters = {k: Fitter(FitOptions(**{**opts.__dict__, "model": s, "fixed": {}})) for k, s in specs.items()}
+    fitters = {k: Fitter(replace(opts, model=s, fixed={})) for k, s in specs.items()}
     base = fitters["full"]
     results = []
     if out is not None:

@@ -12,6 +12,8 @@ the lobe descriptions.
 """
 from __future__ import annotations
 
+from functools import cached_property
+
 import numpy as np
 
 from .lobes import LAMBDAS, REGISTRY, CookTorrance, Diffraction, Diffuse
@@ -63,6 +65,11 @@ def parse_lobe(text: str, lambdas=LAMBDAS) -> Lobe:
     raise ModelError(f"unknown lobe '{name}' in '{text}'; {_valid_text()}")
 
 
+def _frozen(a):
+    a.setflags(write=False)
+    return a
+
+
 class Model:
     """A sum of lobes with its parameter slots; optionally some parameters fixed."""
 
@@ -83,6 +90,9 @@ class Model:
                 raise ModelError(f"cannot fix '{k}': not a parameter of {self.spec}; "
                                  f"parameters: {', '.join(self.names)}")
             self.fixed[k] = float(v)
+        self.lo = _frozen(np.array([s.param.lo for s in self.slots]))
+        self.hi = _frozen(np.array([s.param.hi for s in self.slots]))
+        self.log = _frozen(np.array([s.param.log for s in self.slots]))
         self.free = np.array([n not in self.fixed for n in self.names])
         self.free_index = np.flatnonzero(self.free)
         self.const_names = [k for lb in self.lobes for k in lb.const_names()]
@@ -110,18 +120,6 @@ class Model:
 
     def has(self, prefix):
         return any(lb.prefix == prefix for lb in self.lobes)
-
-    @property
-    def lo(self):
-        return np.array([s.param.lo for s in self.slots])
-
-    @property
-    def hi(self):
-        return np.array([s.param.hi for s in self.slots])
-
-    @property
-    def log(self):
-        return np.array([s.param.log for s in self.slots])
 
     def defaults(self):
         v = np.array([s.param.default for s in self.slots])
@@ -162,22 +160,22 @@ class Model:
         v = np.asarray(values, dtype=np.float64)[..., self.free_index]
         return np.where(self.log[self.free_index], v, 1.0)
 
-    @property
+    @cached_property
     def search_x_lo(self):
         """The global search's candidate box in x space (each Param's search range)."""
-        return self.to_x(np.array([s.param.search_range[0] for s in self.slots]))
+        return _frozen(self.to_x(np.array([s.param.search_range[0] for s in self.slots])))
 
-    @property
+    @cached_property
     def search_x_hi(self):
-        return self.to_x(np.array([s.param.search_range[1] for s in self.slots]))
+        return _frozen(self.to_x(np.array([s.param.search_range[1] for s in self.slots])))
 
-    @property
+    @cached_property
     def x_lo(self):
-        return self.to_x(self.lo)
+        return _frozen(self.to_x(self.lo))
 
-    @property
+    @cached_property
     def x_hi(self):
-        return self.to_x(self.hi)
+        return _frozen(self.to_x(self.hi))
 
     # --- reference evaluation -------------------------------------------------------------------
     def reference(self, cells, values, jacobian=True):
