@@ -81,21 +81,25 @@ def slice_cells(phi_bins=slice(80, 100)):
     return Cells.from_directions(wi[ok], wo[ok]), ok, TH.shape
 
 
+def only_lobes(model, params, keep):
+    """Value vector of a fit with every amplitude outside the lobes ``keep`` set to zero."""
+    v = np.array([params[n] for n in model.names])
+    if keep is not None:
+        for i, s in enumerate(model.slots):
+            if s.lobe not in keep and ".rho_" in s.name:
+                v[i] = 0.0
+    return v
+
+
 def lobe_images(spec, params):
     """(3, 90, 90) images of each lobe group at phi_d ~ 90: diffuse+diffraction, CT, full."""
     cells, ok, shape = slice_cells()
     out = {}
     model = Model(spec)
-    v = np.array([params[n] for n in model.names])
     groups = {"diffuse_diffraction": ("diffuse", "diffraction"), "ct": ("ct",), "full": None}
     for key, keep in groups.items():
-        vv = v.copy()
-        if keep is not None:
-            for i, s in enumerate(model.slots):
-                if s.lobe not in keep and ".rho_" in s.name:
-                    vv[i] = 0.0
         p = np.full((3, ok.size), np.nan)
-        p[:, ok] = model.reference(cells, vv, jacobian=False)
+        p[:, ok] = model.reference(cells, only_lobes(model, params, keep), jacobian=False)
         with np.errstate(invalid="ignore", divide="ignore"):
             n = np.isfinite(p.reshape(3, *shape)).sum(-1)
             img = np.nansum(p.reshape(3, *shape), axis=-1) / np.maximum(n, 1)
@@ -111,13 +115,9 @@ def peak_share(spec, params):
     th, td, pd = bin_centres()
     wi, wo = directions(np.array([th[0]]), np.array([td[10]]), np.array([pd[90]]))
     cells = Cells.from_directions(wi, wo)
-    v = np.array([params[n] for n in model.names])
-    only = v.copy()
-    for i, s in enumerate(model.slots):
-        if s.lobe != "diffraction" and ".rho_" in s.name:
-            only[i] = 0.0
-    total = model.reference(cells, v, jacobian=False).sum()
-    return float(model.reference(cells, only, jacobian=False).sum() / max(total, 1e-300))
+    total = model.reference(cells, only_lobes(model, params, None), jacobian=False).sum()
+    part = model.reference(cells, only_lobes(model, params, ("diffraction",)), jacobian=False).sum()
+    return float(part / max(total, 1e-300))
 
 
 def analyze_material(name, brdf, fits, specs) -> MaterialAnalysis:
