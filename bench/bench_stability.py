@@ -56,7 +56,7 @@ def corner_values(model, rng, n_random=24):
     V = [lo, hi, d]
     V += list(np.where(rng.random((n_random, model.n_params)) < 0.5, lo, hi))
     z = d.copy()
-    z[[i for i, nm in enumerate(model.names) if ".rho_" in nm]] = 0.0
+    z[model.amplitude] = 0.0
     V.append(z)
     for name in ("ct.alpha", "diffraction.a"):
         if name in model.names:

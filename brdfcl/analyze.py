@@ -86,7 +86,7 @@ def only_lobes(model, params, keep):
     v = np.array([params[n] for n in model.names])
     if keep is not None:
         for i, s in enumerate(model.slots):
-            if s.lobe not in keep and ".rho_" in s.name:
+            if s.lobe not in keep and s.amplitude:
                 v[i] = 0.0
     return v
 

@@ -106,7 +106,7 @@ class Fitter:
         self.engine = engine or Engine(self.model, device=opts.device, real=opts.real,
                                        metric=opts.metric, cosw=opts.cosw)
         self.full_index = select_cells(opts.cutoff_deg)
-        self._lin = np.array([".rho_" in self.model.names[i] for i in self.model.free_index])
+        self._lin = self.model.amplitude[self.model.free_index]
         self.coarse_index, self.coarse_scale = coarse_cells(
             self.full_index, opts.coarse_stride, opts.coarse_peak_bins, opts.coarse_peak_stride)
 
@@ -217,9 +217,8 @@ class Fitter:
         cols = {n: k for k, n in enumerate(m.names[i] for i in m.free_index)}
         dead = []
         for lb in m.lobes:
-            amp = [cols[s.name] for s in lb.slots() if s.name in cols and ".rho_" in s.name]
-            shape = [cols[s.name] for s in lb.slots() if s.name in cols and ".rho_" not in s.name
-                     and s.param.log]
+            amp = [cols[s.name] for s in lb.slots() if s.name in cols and s.amplitude]
+            shape = [cols[s.name] for s in lb.slots() if s.name in cols and not s.amplitude and s.param.log]
             if amp and shape and all(x[k] <= m.x_lo[k] + 1e-6 for k in amp):
                 dead.append((amp, shape))
         return dead

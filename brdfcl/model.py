@@ -94,6 +94,7 @@ class Model:
         self.hi = _frozen(np.array([s.param.hi for s in self.slots]))
         self.log = _frozen(np.array([s.param.log for s in self.slots]))
         self.free = np.array([n not in self.fixed for n in self.names])
+        self.amplitude = _frozen(np.array([s.amplitude for s in self.slots]))
         self.free_index = np.flatnonzero(self.free)
         self.const_names = [k for lb in self.lobes for k in lb.const_names()]
 

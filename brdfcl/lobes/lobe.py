@@ -22,6 +22,7 @@ class Slot:
     param: Param
     channel: int | None        # colour channel of a per-channel parameter
     lobe: str
+    amplitude: bool = False    # the lobe's amplitude: the model is linear in it
 
     @property
     def cname(self):
@@ -57,7 +58,7 @@ class Lobe:
     terms: tuple[Term, ...] = ()
 
     def slots(self) -> list[Slot]:
-        out = [Slot(f"{self.prefix}.{self.amplitude.name}_{CH[c]}", self.amplitude, c, self.prefix)
+        out = [Slot(f"{self.prefix}.{self.amplitude.name}_{CH[c]}", self.amplitude, c, self.prefix, True)
                for c in range(3)]
         for t in self.terms:
             for p in t.params:
