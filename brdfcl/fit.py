@@ -28,6 +28,7 @@ from .lm import LMOptions, levenberg_marquardt
 from .lockstep import Problem, run_lockstep
 from .merl import N_PD, N_TD
 from .model import DEFAULT_MODEL, Model
+from .peak_order import PeakOrder
 
 GLOBAL_METHODS = ("lds", "mlsl", "crs2", "none")
 
@@ -52,6 +53,8 @@ class FitOptions:
     fixed: dict = field(default_factory=dict)
     probe_dead_lobes: bool = True   # revive a lobe that ends at zero amplitude at `probes` shapes
     probes: int = 4
+    ct_peak: bool = False           # Cook-Torrance carries the specular peak (brdfcl.peak_order)
+    ct_peak_global: bool = True     # ... in the global search too (else only in the local stage)
 
     def __post_init__(self):
         if self.global_method not in GLOBAL_METHODS:
@@ -107,6 +110,8 @@ class Fitter:
                                        metric=opts.metric, cosw=opts.cosw)
         self.full_index = select_cells(opts.cutoff_deg)
         self._lin = self.model.amplitude[self.model.free_index]
+        self.order = PeakOrder.for_model(self.model) if opts.ct_peak else None
+        self._sw = None                 # per material sum of cell weights, the penalty's scale
         self.coarse_index, self.coarse_scale = coarse_cells(
             self.full_index, opts.coarse_stride, opts.coarse_peak_bins, opts.coarse_peak_stride)
 
@@ -114,10 +119,25 @@ class Fitter:
     def _values(self, x):
         return self.model.from_x(x)
 
-    def _grad_x(self, cs, x, mats):
+    # The peak constraint (self.order) makes the search harder in two ways: with it, most Sobol
+    # candidates are infeasible and the feasible ones favour needle-sharp CT lobes; without it
+    # (``ct_peak_global=False``), the optima may have the lobes' roles swapped, and walking them to
+    # the constraint can end in a poor local minimum.  brdfcl.analyze fits both ways.
+    def _loss(self, cs, x, mats, order=True):
+        L = self.engine.loss(cs, self._values(x), mats)
+        if order and self.order is not None:
+            L = L + self.order.loss(self._values(x), self._sw[mats])
+        return L
+
+    def _grad_x(self, cs, x, mats, order=True):
         v = self._values(x)
         L, g = self.engine.grad(cs, v, mats)
-        return L, g * self.model.dvalue_dx(v)
+        g = g * self.model.dvalue_dx(v)
+        if order and self.order is not None:
+            r, J = self.order.residual(v, self._sw[mats])
+            L = L + np.sum(r * r, axis=1)
+            g = g + 2 * np.einsum("nc,nck->nk", r, J) * self.model.dvalue_dx(v)
+        return L, g
 
     # Levenberg-Marquardt space: the model is linear in its amplitudes, so LM steps them in
     # natural units (Gauss-Newton is exact in them, and an amplitude at its lower bound is not
@@ -133,13 +153,21 @@ class Fitter:
         return x
 
     def _jtj_lm(self, cs, y, mats):
-        v = self._values(self.from_lm(y))
+        x = self.from_lm(y)
+        v = self._values(x)
         L, r, H = self.engine.jtj(cs, v, mats)
         s = np.where(self._lin, 1.0, self.model.dvalue_dx(v))
-        return L, r * s, H * s[:, :, None] * s[:, None, :]
+        L, r, H = np.array(L, dtype=np.float64), r * s, H * s[:, :, None] * s[:, None, :]
+        if self.order is not None:
+            rp, Jp = self.order.residual(v, self._sw[mats])
+            Jp = Jp * s[:, None, :]
+            L = L + np.sum(rp * rp, axis=1)
+            r = r + np.einsum("nc,nck->nk", rp, Jp)
+            H = H + np.einsum("nci,ncj->nij", Jp, Jp)
+        return L, r, H
 
     # --- stages -----------------------------------------------------------------------------------
-    def global_search(self, cs, names, log):
+    def global_search(self, cs, names, log, order=True):
         """Local optima on the coarse set: ([(material, x, coarse loss)], evaluations per material)."""
         m, o = self.model, self.opts
         n = len(names)
@@ -153,7 +181,7 @@ class Fitter:
             slo, shi = m.search_x_lo, m.search_x_hi
             cand = np.vstack([m.to_x(m.defaults()), slo + sob * (shi - slo)])
             nc = cand.shape[0]
-            L = self.engine.loss(cs, self._values(np.tile(cand, (n, 1))), np.repeat(np.arange(n), nc))
+            L = self._loss(cs, np.tile(cand, (n, 1)), np.repeat(np.arange(n), nc), order=order)
             L = np.where(np.isfinite(L), L, np.inf).reshape(n, nc)
             nfev += nc
             best = np.argsort(L[:, 1:], axis=1)[:, :o.n_starts] + 1
@@ -183,8 +211,8 @@ class Fitter:
         def evaluate(xs, need, ids):
             mats = mats_of[ids]
             if need.any():
-                return self._grad_x(cs, xs, mats)
-            return self.engine.loss(cs, self._values(xs), mats), np.zeros_like(xs)
+                return self._grad_x(cs, xs, mats, order=order)
+            return self._loss(cs, xs, mats, order=order), np.zeros_like(xs)
         out = run_lockstep(problems, evaluate)
         for (i, _), oc in zip(starts, out):
             nfev[i] += oc.nfev
@@ -203,7 +231,7 @@ class Fitter:
             for f, xi in lst[:keep]:
                 rows.append(i)
                 xs.append(xi)
-        L = self.engine.loss(cs_full, self._values(np.array(xs)), np.array(rows))
+        L = self._loss(cs_full, np.array(xs), np.array(rows))
         best = np.full(n, np.inf)
         for i, xi, li in zip(rows, xs, L):
             if np.isfinite(li) and li < best[i]:
@@ -259,13 +287,14 @@ class Fitter:
         n = len(names)
         w_full = table_geometry().weight[self.full_index]
         sw = np.array([np.sum(np.isfinite(d) * w_full) for d in full_data])   # sum of w over channels
+        self._sw = sw
         cs_full = eng.upload(names, self.full_index, full_data)
         cs_coarse = eng.upload(names, self.coarse_index, coarse_data, weight_scale=self.coarse_scale)
         history = [[] for _ in range(n)]
-        outcomes, nfev = self.global_search(cs_coarse, names, log)
+        outcomes, nfev = self.global_search(cs_coarse, names, log, order=o.ct_peak_global)
         x0 = self.pick_starts(cs_full, outcomes, n)
         t_global = time.perf_counter() - t0
-        L0 = eng.loss(cs_full, self._values(x0), np.arange(n))
+        L0 = self._loss(cs_full, x0, np.arange(n))
         for i in range(n):
             history[i].append((t_global, "global", float(np.sqrt(L0[i] / sw[i]))))
         results = [None] * n

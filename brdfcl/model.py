@@ -182,15 +182,17 @@ class Model:
     def reference(self, cells, values, jacobian=True):
         """Model value (3, n) and Jacobian (3, n, n_free) w.r.t. the free natural parameters.
 
+        ``values`` is one parameter vector, or one per cell (n, n_params).
+
         Computed in the precision of the cells (float64 is the reference; float32
         cells give the float32 numpy version the benchmark compares against)."""
         dt = cells.sh.dtype
         values = np.asarray(values, dtype=np.float64)
-        consts = dict(zip(self.const_names, self.consts(values).astype(dt)))
+        consts = dict(zip(self.const_names, np.moveaxis(self.consts(values).astype(dt), -1, 0)))
         values = values.astype(dt)
 
         def value(name):
-            return values[self._pos[name]]
+            return values[..., self._pos[name]]
 
         p = np.zeros((3, len(cells)), dtype=dt)
         J = np.zeros((3, len(cells), self.n_free), dtype=dt) if jacobian else None

@@ -1,0 +1,92 @@
+"""Which lobe carries the specular peak: Cook-Torrance, as in the talk's three-lobe model.
+
+Cook-Torrance and diffraction fit the same tables (GGX's D and the hp PSD are the same
+function of sin theta_h at theta_d = 0), so a free fit of both may swap their roles: a
+broad CT lobe for the wide angles and a narrow diffraction lobe on the peak.  The talk's
+model gives each lobe one region, and this makes it a constraint of the fit: at the
+specular peak (`peak_cell`), in every channel, the diffraction lobe's value may not
+exceed the CT lobe's,
+
+    ln W_c(peak) - ln C_c(peak) <= 0,
+
+imposed as a quadratic penalty ``WEIGHT * sum_w * sum_c max(0, ln W_c - ln C_c)^2``
+(sum_w: the material's summed cell weights, so that the penalty is on the scale of its
+loss; a 1% excess costs as much as an rmse of 0.01).  The lobe values and their
+derivatives come from the float64 reference of each lobe, one row per material.
+`brdfcl analyze` reports what the constraint costs (the full fit with and without it).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .geometry import bin_centres, directions
+from .lobes.cells import Cells
+
+WEIGHT = 1.0
+PEAK_TD_BIN = 10          # theta_d ~ 10 deg on the first theta_h bin, phi_d ~ 90 deg
+
+
+def peak_cell(n=1):
+    """n copies of the cell that stands for the specular peak."""
+    th, td, pd = bin_centres()
+    wi, wo = directions(np.full(n, th[0]), np.full(n, td[PEAK_TD_BIN]), np.full(n, pd[90]))
+    return Cells.from_directions(wi, wo)
+
+
+def lobe_model(model, prefix):
+    """The sub-model made of one lobe of ``model`` (same parameter names), or None."""
+    from .model import Model
+    parts = [p for p, lb in zip(model.spec.split("+"), model.lobes) if lb.prefix == prefix]
+    if not parts:
+        return None
+    fixed = {k: v for k, v in model.fixed.items() if k.startswith(prefix + ".")}
+    return Model(parts[0], fixed=fixed, lambdas=model.lambdas)
+
+
+class PeakOrder:
+    """The penalty for one model, on natural parameter vectors (rows = materials)."""
+
+    def __init__(self, model, w_model, c_model):
+        self.model, self.w, self.c = model, w_model, c_model
+        free = [model.names[i] for i in model.free_index]
+        self._cols = {sub: np.array([free.index(sub.names[i]) for i in sub.free_index], dtype=int)
+                      for sub in (w_model, c_model)}
+        self._pick = {sub: np.array([model.names.index(n) for n in sub.names]) for sub in (w_model, c_model)}
+
+    @classmethod
+    def for_model(cls, model):
+        """The penalty for a model with a diffraction and a Cook-Torrance lobe, else None."""
+        w, c = lobe_model(model, "diffraction"), lobe_model(model, "ct")
+        return cls(model, w, c) if w is not None and c is not None else None
+
+    def _lobe(self, sub, values):
+        p, J = sub.reference(peak_cell(values.shape[0]), values[:, self._pick[sub]])
+        return p.T, np.moveaxis(J, 0, 1)          # (n, 3), (n, 3, sub free)
+
+    def residual(self, values, scale):
+        """Residuals (n, 3) and their Jacobian (n, 3, n_free) w.r.t. the free natural parameters."""
+        values = np.atleast_2d(np.asarray(values, dtype=np.float64))
+        n = values.shape[0]
+        s = np.sqrt(WEIGHT * np.asarray(scale, dtype=np.float64))[:, None]
+        W, JW = self._lobe(self.w, values)
+        C, JC = self._lobe(self.c, values)
+        tiny = 1e-300
+        v = np.log(np.maximum(W, tiny)) - np.log(np.maximum(C, tiny))
+        on = (v > 0) & np.isfinite(v)
+        r = np.where(on, s * np.minimum(v, 50.0), 0.0)
+        J = np.zeros((n, 3, self.model.n_free))
+        J[:, :, self._cols[self.w]] += JW / np.maximum(W, tiny)[..., None]
+        J[:, :, self._cols[self.c]] -= JC / np.maximum(C, tiny)[..., None]
+        J *= np.where(on, s, 0.0)[..., None]
+        return r, np.where(np.isfinite(J), J, 0.0)
+
+    def loss(self, values, scale):
+        r, _ = self.residual(values, scale)
+        return np.sum(r * r, axis=1)
+
+    def excess(self, values):
+        """ln W_c - ln C_c at the peak (n, 3): > 0 where diffraction carries more than CT."""
+        values = np.atleast_2d(np.asarray(values, dtype=np.float64))
+        W, _ = self._lobe(self.w, values)
+        C, _ = self._lobe(self.c, values)
+        return np.log(np.maximum(W, 1e-300)) - np.log(np.maximum(C, 1e-300))
