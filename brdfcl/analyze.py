@@ -7,8 +7,12 @@ necessary, none sufficient (a broad Cook-Torrance lobe can tilt the level lines 
 f does, and a misfitting CT lobe can be patched by a diffraction lobe), so the verdict
 is ``diffraction`` only when the lobe comparison keeps the diffraction lobe and neither
 the gradient test (score >= 0.5) nor the wavelength check (ratio >= 1.5, see
-brdfcl.wavelength) contradicts it where it can decide; ``none`` otherwise.  A material with verdict ``none`` gets its
-final fit without the diffraction lobe.
+brdfcl.wavelength) contradicts it where it can decide; ``none`` otherwise.  A material
+with verdict ``none`` gets its final fit without the diffraction lobe.
+
+The fits give the specular peak to Cook-Torrance (brdfcl.peak_order, the talk's model);
+the full model is also fitted without that constraint (``full_free``) so that the table
+shows what the constraint costs and which lobe a free fit would put on the peak.
 """
 from __future__ import annotations
 
@@ -23,11 +27,13 @@ from .gradient_test import GradientMap, gradient_test, phi90_slice
 from .lobes.cells import Cells
 from .merl import material_name, read_merl
 from .model import Model
+from .peak_order import peak_cell
 from .run import FileReader, database_paths
 from .selection import select, variants
 from .wavelength import WavelengthCheck, wavelength_check
 
 MIN_DECIDABLE = 30            # gradient test cells below which it is inconclusive
+COMPARED = ("full", "no_diffraction", "no_ct")
 
 
 @dataclass
@@ -42,11 +48,12 @@ class MaterialAnalysis:
     gradient: GradientMap
     wavelength: WavelengthCheck
     peak_share_diffraction: float         # share of the fitted peak value from the diffraction lobe
+    peak_share_free: float                # the same for the fit without the peak constraint
     slices: dict = field(default_factory=dict)   # name -> (3, 90, 90) phi_d ~ 90 deg images
 
     @property
     def final(self):
-        return next(r for k, r in self.fits.items() if self.specs[k] == self.final_model)
+        return next(r for k, r in self.fits.items() if self.specs[k] == self.final_model and k in COMPARED)
 
     def row(self):
         g, w = self.gradient, self.wavelength
@@ -64,7 +71,10 @@ class MaterialAnalysis:
             r = self.fits.get(k)
             out[f"rmse_log_{k}"] = _fmt(r.errors["rmse_log"]) if r else ""
             out[f"penalised_{k}"] = _fmt(self.penalised.get(k, np.nan)) if r else ""
+        free = self.fits.get("full_free")
+        out["rmse_log_full_free"] = _fmt(free.errors["rmse_log"]) if free else ""
         out["peak_share_diffraction"] = _fmt(self.peak_share_diffraction)
+        out["peak_share_free"] = _fmt(self.peak_share_free)
         return out
 
 
@@ -108,20 +118,18 @@ def lobe_images(spec, params):
 
 
 def peak_share(spec, params):
-    """Share of the fitted value at the specular peak (first theta_h bin, theta_d ~ 10 deg) due to diffraction."""
+    """Share of the fitted value at the specular peak (brdfcl.peak_order.peak_cell) due to diffraction."""
     model = Model(spec)
     if not model.has("diffraction"):
         return 0.0
-    th, td, pd = bin_centres()
-    wi, wo = directions(np.array([th[0]]), np.array([td[10]]), np.array([pd[90]]))
-    cells = Cells.from_directions(wi, wo)
+    cells = peak_cell()
     total = model.reference(cells, only_lobes(model, params, None), jacobian=False).sum()
     part = model.reference(cells, only_lobes(model, params, ("diffraction",)), jacobian=False).sum()
     return float(part / max(total, 1e-300))
 
 
 def analyze_material(name, brdf, fits, specs) -> MaterialAnalysis:
-    errors = {k: r.errors["rmse_log"] for k, r in fits.items() if r.success}
+    errors = {k: r.errors["rmse_log"] for k, r in fits.items() if r.success and k in COMPARED}
     sel, pen = select(errors, {k: specs[k] for k in errors})
     gm = gradient_test(brdf)
     full = fits["full"]
@@ -136,12 +144,14 @@ def analyze_material(name, brdf, fits, specs) -> MaterialAnalysis:
         final_key = "no_diffraction" if "no_diffraction" in fits else sel
     else:
         final_key = sel
+    free = fits.get("full_free")
     return MaterialAnalysis(name, verdict, sel, specs[final_key], fits, specs, pen, gm, wl,
-                            peak_share(specs["full"], full.params))
+                            peak_share(specs["full"], full.params),
+                            peak_share(specs["full"], free.params) if free else float("nan"))
 
 
 def analyze(source, out=None, options: FitOptions | None = None, batch=100, log=None, figures=True,
-            on_material=None):
+            on_material=None, ct_peak=True):
     """Analyse every material of a database; writes analysis.csv, maps, figures and index.html."""
     from . import report
     opts = options or FitOptions()
@@ -151,8 +161,12 @@ def analyze(source, out=None, options: FitOptions | None = None, batch=100, log=
         raise ValueError(f"analysis needs a model with diffuse, diffraction and Cook-Torrance lobes, "
                          f"got '{opts.model}'")
     paths = database_paths(source)
-    fitters = {k: Fitter(replace(opts, model=s, fixed={})) for k, s in specs.items()}
+    fitters = {k: Fitter(replace(opts, model=s, fixed={}, ct_peak=ct_peak)) for k, s in specs.items()}
     base = fitters["full"]
+    if ct_peak:     # the constrained fit from both global searches (brdfcl.fit), and a free one
+        fitters["full_local"] = Fitter(replace(base.opts, ct_peak_global=False), engine=base.engine)
+        fitters["full_free"] = Fitter(replace(base.opts, ct_peak=False), engine=base.engine)
+        specs["full_free"] = specs["full_local"] = specs["full"]
     results = []
     if out is not None:
         report.prepare(out)
@@ -164,8 +178,11 @@ def analyze(source, out=None, options: FitOptions | None = None, batch=100, log=
         for k, f in fitters.items():
             t = time.perf_counter()
             fits[k] = {r.name: r for r in f.fit(names, full, coarse)}
-            log(f"fitted {len(names)} materials with {specs[k]} in {time.perf_counter() - t:.1f} s")
+            log(f"fitted {len(names)} materials with {specs[k]} ({k}) in {time.perf_counter() - t:.1f} s")
         del full, coarse
+        if "full_local" in fits:
+            other = fits.pop("full_local")
+            fits["full"] = {n: (r if r.loss <= other[n].loss else other[n]) for n, r in fits["full"].items()}
         for name, path in zip(names, [p for p in part if material_name(p) in set(names)]):
             brdf = read_merl(path).brdf()
             a = analyze_material(name, brdf, {k: fits[k][name] for k in fits}, specs)

@@ -59,7 +59,7 @@ def fit_options(args):
                       cutoff_deg=None if args.cutoff >= 90 else args.cutoff,
                       real="double" if args.double else "float", device=args.device,
                       global_method=args.global_method, n_candidates=args.candidates,
-                      n_starts=args.starts, seed=args.seed, fixed=fixed,
+                      n_starts=args.starts, seed=args.seed, fixed=fixed, ct_peak=args.ct_peak,
                       lm=LMOptions(max_iter=args.max_iter))
 
 
@@ -84,7 +84,8 @@ def cmd_fit_all(args):
         client = make_client(args.scheduler, args.workers)
     try:
         report = fit_all(source, args.out, opts, batch=args.batch, export=args.export_merl,
-                         quiet=args.quiet, log=log, client=client, select_lobes=args.select_lobes)
+                         quiet=args.quiet, log=log, client=client, select_lobes=args.select_lobes,
+                         free_peak=args.free_peak)
     finally:
         if client is not None:
             client.close()
@@ -102,7 +103,8 @@ def cmd_fit_all(args):
 def cmd_analyze(args):
     from .analyze import analyze
     source, opts, log = _database_job(args)
-    res = analyze(source, args.out, opts, batch=args.batch, log=log, figures=not args.no_figures)
+    res = analyze(source, args.out, opts, batch=args.batch, log=log, figures=not args.no_figures,
+                  ct_peak=not args.free_peak)
     n = sum(a.verdict == "diffraction" for a in res)
     print(f"analysed {len(res)} materials: {n} with diffraction, {len(res) - n} without; "
           f"see {args.out}/analysis.csv and {args.out}/index.html")
@@ -139,6 +141,10 @@ def add_fit_arguments(p):
     p.add_argument("--starts", type=int, default=4, help="local searches per material (lds)")
     p.add_argument("--max-iter", type=int, default=60, help="Levenberg-Marquardt iterations (default 60)")
     p.add_argument("--fix", action="append", metavar="NAME=VALUE", help="hold a parameter fixed")
+    p.add_argument("--ct-peak", action="store_true",
+                   help="Cook-Torrance carries the specular peak: the diffraction lobe may not exceed it "
+                        "there (always on in analyze and --select-lobes unless --free-peak)")
+    p.add_argument("--free-peak", action="store_true", help="analyze, --select-lobes: no peak constraint")
     p.add_argument("--seed", type=int, default=0)
 
 

@@ -134,17 +134,20 @@ def write_index(out, analyses):
     atomic_write_text(out / "analysis.csv", buf.getvalue())
     cols = ["material", "verdict", "selected_lobes", "grad_score_g", "grad_cells", "grad_band_deg_g",
             "wavelength_ratio", "rmse_log_full", "rmse_log_no_diffraction", "rmse_log_no_ct",
-            "peak_share_diffraction"]
+            "peak_share_diffraction", "rmse_log_full_free", "peak_share_free"]
     h = ["<!doctype html><meta charset='utf-8'><title>brdfcl analysis</title>",
          "<style>body{font-family:sans-serif;margin:1em}td,th{border:1px solid #ccc;padding:2px 5px;"
          "font-size:12px}table{border-collapse:collapse}.diffraction{background:#fde8d8}"
          ".none{background:#e3eefc}.figs img{width:32%;vertical-align:top}h2{margin-bottom:0.2em}</style>",
          "<h1>Diffraction in measured BRDFs: per-material verdicts</h1>",
          "<p>Gradient test: share of the decidable wide-angle cells whose data gradient at phi_d ~ 90 deg "
-         "is closer to grad f than to theta_h = const. Wavelength check: spread of the channels against "
-         "f_c over their spread without the wavelength (&lt; 1 collapses; &ge; 1.5 contradicts). Lobe "
+         "is closer to the diffraction prediction (parallel to grad f) than to the Cook-Torrance one "
+         "(theta_h = const tilted by 1/(cos ti cos to) and the Fresnel slope of the ridge). "
+         "Wavelength check: spread of the channels against f_c over their spread without the wavelength (&lt; 1 collapses; &ge; 1.5 contradicts). Lobe "
          "comparison: penalised rmse_log with and without each lobe. Peak share: part of the fitted "
-         "value at the specular peak carried by the diffraction lobe.</p><table><tr>"]
+         "value at the specular peak carried by the diffraction lobe; the fits keep it at most equal to "
+         "Cook-Torrance's (the talk's model), and the *_free columns show the full fit without that "
+         "constraint.</p><table><tr>"]
     h += [f"<th>{html.escape(c)}</th>" for c in cols] + ["</tr>"]
     for a, r in zip(analyses, rows):
         cells = [f"<a href='#{html.escape(a.name)}'>{html.escape(a.name)}</a>"]

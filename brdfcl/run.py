@@ -71,7 +71,7 @@ class Progress:
 
 
 def fit_all(source, out=None, options: FitOptions | None = None, batch=100, export=False,
-            quiet=True, log=None, client=None, select_lobes=False, **kw) -> RunReport:
+            quiet=True, log=None, client=None, select_lobes=False, free_peak=False, **kw) -> RunReport:
     """Fit every material of a database; write results to ``out`` if given.
 
     ``source``: folder, file or list of files.  ``options`` or keyword arguments
@@ -95,7 +95,7 @@ def fit_all(source, out=None, options: FitOptions | None = None, batch=100, expo
     if report.resumed:
         log(f"resuming: {len(report.resumed)} materials already finished in {out}")
     if select_lobes:
-        return _fit_selected(todo, out, opts, batch, export, report, log, t0)
+        return _fit_selected(todo, out, opts, batch, export, report, log, t0, free_peak)
     if client is not None:
         from .cluster import fit_on_cluster
         return fit_on_cluster(client, todo, out, opts, batch, export, report, log, quiet, t0)
@@ -179,12 +179,12 @@ def result_writer(out, models: Models, export, report, progress):
     return handle
 
 
-def _fit_selected(paths, out, opts, batch, export, report, log, t0):
+def _fit_selected(paths, out, opts, batch, export, report, log, t0, free_peak=False):
     """--select-lobes: the lobe comparison of brdfcl.analyze decides each material's model;
     its final fit (without the diffraction lobe where the verdict is 'none') is the result."""
     from .analyze import analyze
     write = result_writer(out, Models(opts), export, report, Progress(0, True))
-    analyze(paths, None, opts, batch=batch, log=log, figures=False,
+    analyze(paths, None, opts, batch=batch, log=log, figures=False, ct_peak=not free_peak,
             on_material=lambda a: write(a.final, {"selected_by": "lobe comparison", "verdict": a.verdict}))
     report.seconds = time.perf_counter() - t0
     return report
