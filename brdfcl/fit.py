@@ -124,19 +124,21 @@ class Fitter:
     # (``ct_peak_global=False``), the optima may have the lobes' roles swapped, and walking them to
     # the constraint can end in a poor local minimum.  brdfcl.analyze fits both ways.
     def _loss(self, cs, x, mats, order=True):
-        L = self.engine.loss(cs, self._values(x), mats)
+        v = self._values(x)
+        L = self.engine.loss(cs, v, mats)
         if order and self.order is not None:
-            L = L + self.order.loss(self._values(x), self._sw[mats])
+            L = L + self.order.loss(v, self._sw[mats])
         return L
 
     def _grad_x(self, cs, x, mats, order=True):
         v = self._values(x)
         L, g = self.engine.grad(cs, v, mats)
-        g = g * self.model.dvalue_dx(v)
+        dv = self.model.dvalue_dx(v)
+        g = g * dv
         if order and self.order is not None:
             r, J = self.order.residual(v, self._sw[mats])
             L = L + np.sum(r * r, axis=1)
-            g = g + 2 * np.einsum("nc,nck->nk", r, J) * self.model.dvalue_dx(v)
+            g = g + 2 * np.einsum("nc,nck->nk", r, J) * dv
         return L, g
 
     # Levenberg-Marquardt space: the model is linear in its amplitudes, so LM steps them in

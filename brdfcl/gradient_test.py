@@ -9,8 +9,8 @@ exactly, so ``dp/dtd = 2 tan td (p - rho_d/pi)`` whatever D is (D depends on the
 only).  Against a bare theta_h axis a pure GGX lobe scores ~0.7 (its tails tilt by
 half as much as f's level lines); against this prediction it scores ~0.  Each cell is
 therefore given to the hypothesis whose predicted direction, built from the measured
-theta_h slope, is closer to the measured gradient.  Both share a Fresnel factor
-F(td), which shifts dp/dtd equally for both; the theta_d limit keeps it small.
+theta_h slope, is closer to the measured gradient.  Both lobes carry a Fresnel factor
+F(td); its slope is read off the specular ridge (`ridge_log_slope`).
 
 Choices, all on the data:
 * slice: the mean over phi_d in [80, 100) degrees (20 bins, where theta_i ~ theta_o),
@@ -89,7 +89,8 @@ def line_angle(ax, ay, bx, by):
 
 def ridge_log_slope(p, floor, td):
     """d ln (p - floor) / d theta_d along the specular ridge (the first RIDGE_BINS theta_h bins),
-    smoothed over 5 theta_d bins; 0 where the ridge is not above the floor.  A Cook-Torrance
+    smoothed over 5 theta_d bins; where the ridge is not above the floor, 2 tan td (CT with
+    no Fresnel slope).  A Cook-Torrance
     lobe's log slope in theta_d is this at every theta_h (its D depends on theta_h only, and at
     phi_d = 90 deg its 1/(cos ti cos to) = 1/(cos th cos td)^2 separates), so it carries the
     Fresnel factor and the 1/cos^2 td of CT without knowing either (Smith G ~1 below the cut-off)."""

@@ -36,11 +36,11 @@ def peak_cell(n=1):
 def lobe_model(model, prefix):
     """The sub-model made of one lobe of ``model`` (same parameter names), or None."""
     from .model import Model
-    parts = [p for p, lb in zip(model.spec.split("+"), model.lobes) if lb.prefix == prefix]
-    if not parts:
+    lobe = next((lb for lb in model.lobes if lb.prefix == prefix), None)
+    if lobe is None:
         return None
     fixed = {k: v for k, v in model.fixed.items() if k.startswith(prefix + ".")}
-    return Model(parts[0], fixed=fixed, lambdas=model.lambdas)
+    return Model(lobe.spec(), fixed=fixed, lambdas=model.lambdas)
 
 
 class PeakOrder:
@@ -63,20 +63,24 @@ class PeakOrder:
         p, J = sub.reference(peak_cell(values.shape[0]), values[:, self._pick[sub]])
         return p.T, np.moveaxis(J, 0, 1)          # (n, 3), (n, 3, sub free)
 
+    def _log_ratio(self, values, jacobian=True):
+        """ln W_c - ln C_c at the peak (n, 3) and its Jacobian (n, 3, n_free)."""
+        values = np.atleast_2d(np.asarray(values, dtype=np.float64))
+        (W, JW), (C, JC) = self._lobe(self.w, values), self._lobe(self.c, values)
+        W, C = np.maximum(W, 1e-300), np.maximum(C, 1e-300)
+        if not jacobian:
+            return np.log(W) - np.log(C), None
+        J = np.zeros((values.shape[0], 3, self.model.n_free))
+        J[:, :, self._cols[self.w]] += JW / W[..., None]
+        J[:, :, self._cols[self.c]] -= JC / C[..., None]
+        return np.log(W) - np.log(C), J
+
     def residual(self, values, scale):
         """Residuals (n, 3) and their Jacobian (n, 3, n_free) w.r.t. the free natural parameters."""
-        values = np.atleast_2d(np.asarray(values, dtype=np.float64))
-        n = values.shape[0]
+        v, J = self._log_ratio(values)
         s = np.sqrt(WEIGHT * np.asarray(scale, dtype=np.float64))[:, None]
-        W, JW = self._lobe(self.w, values)
-        C, JC = self._lobe(self.c, values)
-        tiny = 1e-300
-        v = np.log(np.maximum(W, tiny)) - np.log(np.maximum(C, tiny))
         on = (v > 0) & np.isfinite(v)
         r = np.where(on, s * np.minimum(v, 50.0), 0.0)
-        J = np.zeros((n, 3, self.model.n_free))
-        J[:, :, self._cols[self.w]] += JW / np.maximum(W, tiny)[..., None]
-        J[:, :, self._cols[self.c]] -= JC / np.maximum(C, tiny)[..., None]
         J *= np.where(on, s, 0.0)[..., None]
         return r, np.where(np.isfinite(J), J, 0.0)
 
@@ -86,7 +90,4 @@ class PeakOrder:
 
     def excess(self, values):
         """ln W_c - ln C_c at the peak (n, 3): > 0 where diffraction carries more than CT."""
-        values = np.atleast_2d(np.asarray(values, dtype=np.float64))
-        W, _ = self._lobe(self.w, values)
-        C, _ = self._lobe(self.c, values)
-        return np.log(np.maximum(W, 1e-300)) - np.log(np.maximum(C, 1e-300))
+        return self._log_ratio(values, jacobian=False)[0]
