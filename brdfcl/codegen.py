@@ -7,6 +7,7 @@ parameters are plain constants that the compiler folds away.
 """
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -19,17 +20,34 @@ from .model import Model
 
 
 def kernel_dir() -> Path:
-    """kernels/ beside the package (source checkout, editable install) or inside it (wheel)."""
+    """The OpenCL sources: brdfcl/kernels inside an installed wheel (setup.cfg maps the
+    top-level kernels/ folder there), else kernels/ beside the package (source checkout,
+    editable install).  Inside first, so an installed brdfcl never reads a stray kernels/."""
     here = Path(__file__).resolve().parent
-    for d in (here.parent / "kernels", here / "kernels"):
-        if (d / "model.cl.mako").exists():
+    tried = (here / "kernels", here.parent / "kernels")
+    for d in tried:
+        if (d / "model.cl.mako").is_file():
             return d
-    raise FileNotFoundError(f"brdfcl kernels not found beside {here}")
+    raise FileNotFoundError(
+        "brdfcl's OpenCL kernels are missing (looked in "
+        + " and ".join(str(d) for d in tried)
+        + "): reinstall brdfcl, or run it from a source checkout")
 
 
 @lru_cache(maxsize=None)
 def _read(rel: str) -> str:
     return (kernel_dir() / rel).read_text()
+
+
+@lru_cache(maxsize=1)
+def kernel_sources_hash() -> str:
+    """A hash of every kernel source and the template: decisions cached about compiled programs
+    (brdfcl.width) are stale once the kernels change."""
+    h = hashlib.sha1()
+    for p in sorted(kernel_dir().rglob("*")):
+        if p.suffix in (".cl", ".mako"):
+            h.update(p.relative_to(kernel_dir()).as_posix().encode() + b"\0" + p.read_bytes())
+    return h.hexdigest()
 
 
 @lru_cache(maxsize=1)

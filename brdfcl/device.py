@@ -1,14 +1,16 @@
 """OpenCL platform and device choice.
 
-Default: the first CPU device of a PoCL platform (PoCL's Debian build is
-preferred to the pip one when both are present, as it is faster), else the
+Default: the first CPU device of the newest PoCL platform (Debian's 3.1 build is
+preferred to the pip wheel's 3.0 when both are present), else the
 first device with float64.  ``BRDFCL_DEVICE`` or ``--device`` pick another:
 an index ``P:D`` or ``D`` (into the flat list of ``brdfcl info``) or a
-substring of the platform or device name (``nvidia``, ``pocl``, ``cpu``).
+substring of the platform's name or version or of the device's name (``nvidia``,
+``pocl 3.0``, ``cpu``).
 """
 from __future__ import annotations
 
 import os
+import re
 
 
 class DeviceError(RuntimeError):
@@ -37,16 +39,24 @@ def has_fp64(device):
     return bool(device.double_fp_config) or "cl_khr_fp64" in device.extensions
 
 
+def describe_device(i, p, d):
+    """Two lines on one device for `brdfcl info`: what its driver reports about itself."""
+    return [f"[{i}] {p.name} | {p.version}",
+            f"     {d.name} ({_kind(d)}), {d.max_compute_units} compute units, "
+            f"{d.global_mem_size / 2**30:.1f} GiB, float64: {'yes' if has_fp64(d) else 'no'}, "
+            f"reported vector width float/double: {d.preferred_vector_width_float}/"
+            f"{d.preferred_vector_width_double}"]
+
+
 def describe():
     """Lines for `brdfcl info`."""
-    lines = []
-    for i, (p, d) in enumerate(all_devices()):
-        lines.append(f"[{i}] {p.name} | {p.version}")
-        lines.append(f"     {d.name} ({_kind(d)}), {d.max_compute_units} compute units, "
-                     f"{d.global_mem_size / 2**30:.1f} GiB, float64: {'yes' if has_fp64(d) else 'no'}, "
-                     f"vector width float/double: {d.preferred_vector_width_float}/"
-                     f"{d.preferred_vector_width_double}")
-    return lines
+    return [line for i, (p, d) in enumerate(all_devices()) for line in describe_device(i, p, d)]
+
+
+def pocl_version(platform) -> tuple:
+    """(major, minor, is_release) of a PoCL platform, for ordering; (0, 0, 0) if unknown."""
+    m = re.search(r"PoCL (\d+)\.(\d+)(\S*)", platform.version)
+    return (int(m.group(1)), int(m.group(2)), "rc" not in m.group(3)) if m else (0, 0, 0)
 
 
 def _kind(d):
@@ -63,8 +73,8 @@ def pick_device(selector: str | None = None):
         raise DeviceError("no OpenCL device found; install pyopencl[pocl] for the CPU device")
     if selector in (None, "", "default"):
         pocl = [pd for pd in devs if "portable computing" in pd[0].name.lower()]
-        # Debian's pocl-opencl-icd reports a system path; prefer it over the pip wheel's.
-        pocl.sort(key=lambda pd: "RELOC" in pd[0].version)
+        # The newest PoCL first: Debian's pocl-opencl-icd (3.1) before the pip wheel's (3.0-rc2).
+        pocl.sort(key=lambda pd: pocl_version(pd[0]), reverse=True)
         for p, d in pocl + devs:
             if has_fp64(d):
                 return p, d
@@ -82,6 +92,6 @@ def pick_device(selector: str | None = None):
         raise DeviceError(f"no OpenCL device '{selector}'; devices:\n" + "\n".join(describe()))
     s = selector.lower()
     for p, d in devs:
-        if s in p.name.lower() or s in d.name.lower() or s == _kind(d).lower():
+        if s in p.name.lower() or s in p.version.lower() or s in d.name.lower() or s == _kind(d).lower():
             return p, d
     raise DeviceError(f"no OpenCL device matches '{selector}'; devices:\n" + "\n".join(describe()))

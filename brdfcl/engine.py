@@ -10,41 +10,43 @@ with respect to the model's free natural parameters.
 from __future__ import annotations
 
 import hashlib
+import logging
 from dataclasses import dataclass, field
 
 import numpy as np
 import pyopencl as cl
 
+from . import selftest, width
 from .codegen import KernelOptions, jtj_pairs, n_outputs, render
 from .device import has_fp64, pick_device
 from .geometry import DEFAULT_CUTOFF_DEG, table_geometry
 from .lobes.cells import Cells
 from .model import Model
+from .program import KERNELS, ProgramError, build, repair_pocl_cache
+from .width import is_cpu
 
+_log = logging.getLogger("brdfcl")
 _CONTEXTS: dict = {}
 _PROGRAMS: dict = {}
 
 
 def context_for(selector=None):
-    """(context, queue, device) for a device selector, one per device per process."""
+    """(context, queue, device, platform) for a device selector, one per device per process."""
     platform, device = pick_device(selector)
     key = (platform.name, device.name, device.int_ptr)
     if key not in _CONTEXTS:
         ctx = cl.Context([device])
-        _CONTEXTS[key] = (ctx, cl.CommandQueue(ctx), device)
+        _CONTEXTS[key] = (ctx, cl.CommandQueue(ctx), device, platform)
     return _CONTEXTS[key]
 
 
 def default_options(device, real="float", **kw) -> KernelOptions:
-    """Vector width and work-group size from the device: vectors on CPUs, work-items on GPUs."""
-    is_cpu = bool(device.type & cl.device_type.CPU)
-    if is_cpu:
-        vw = min(16, device.preferred_vector_width_float if real == "float"
-                 else device.preferred_vector_width_double) or 1
+    """Work layout for a device: vectors of ``vw`` cells per work-item on CPUs (the width comes
+    from brdfcl.width, never from the device's own report), one cell per work-item on GPUs."""
+    if is_cpu(device):
         local, chunk = 1, 256
     else:
-        vw, local, chunk = 1, min(128, device.max_work_group_size), 4096
-    kw.setdefault("vw", vw)
+        kw["vw"], local, chunk = 1, min(128, device.max_work_group_size), 4096
     kw.setdefault("local", local)
     kw.setdefault("chunk", chunk)
     return KernelOptions(real=real, **kw)
@@ -139,21 +141,51 @@ class Engine:
     """A model compiled for one device and metric; evaluates batches over a CellSet."""
 
     def __init__(self, model: Model | str, device=None, real="float", metric="log", cosw=True,
-                 **options):
+                 vector_width=None, verify=True, **options):
+        """``vector_width``: cells per work-item on a CPU (default: brdfcl.width's tested choice);
+        ``verify``: self-test the program against the float64 reference before it is used."""
         self.model = Model(model) if isinstance(model, str) else model
-        self.ctx, self.queue, self.device = context_for(device)
+        self.ctx, self.queue, self.device, self.platform = context_for(device)
         if real == "double" and not has_fp64(self.device):
             raise ValueError(f"device {self.device.name} has no float64 support")
+        self.width = None
+        if "vw" not in options and is_cpu(self.device):
+            self.width = width.choose(self.platform, self.device, real, vector_width, log=_log.info)
+            options["vw"] = self.width.width
         self.opt = default_options(self.device, real, metric=metric, cosw=cosw, **options)
         self.dtype = np.float32 if real == "float" else np.float64
         self.source = render(self.model, self.opt)
-        key = (hashlib.sha1(self.source.encode()).hexdigest(), self.device.int_ptr)
-        if key not in _PROGRAMS:
-            _PROGRAMS[key] = cl.Program(self.ctx, self.source).build(options=["-cl-mad-enable"])
-        self.program = _PROGRAMS[key]
-        self._kernels = {k: cl.Kernel(self.program, k) for k in ("loss", "grad", "jtj", "errors", "predict")}
         self.pairs = jtj_pairs(self.model)
         self.n_out = n_outputs(self.model, len(self.pairs))
+        self.program, self.self_test = self._compile(verify)
+        self._kernels = {k: cl.Kernel(self.program, k) for k in KERNELS}
+
+    def _compile(self, verify):
+        """The program for this source, built once per process and device; a build whose kernels
+        are missing or that fails the self-test is built again under a fresh cache key."""
+        key = (hashlib.sha1(self.source.encode()).hexdigest(), self.device.int_ptr)
+        if key in _PROGRAMS and (_PROGRAMS[key][1] is not None or not verify):
+            return _PROGRAMS[key]
+        repair_pocl_cache(self.platform, log=_log.warning)
+        failures = []
+        for attempt in range(2):
+            try:
+                program, self._kernels = build(self.ctx, self.device, self.source, attempt)
+            except ProgramError as e:
+                failures.append(str(e))
+                continue
+            result = selftest.check(self) if verify else None
+            if result is None or result.ok:
+                if failures:
+                    _log.warning(f"brdfcl: rebuilt the {self.model.spec} program on {self.device.name}: "
+                                 f"the cached build failed ({failures[0]})")
+                _PROGRAMS[key] = (program, result)
+                return _PROGRAMS[key]
+            failures.append(f"self-test {result.detail}")
+        hint = (f"; try a narrower --vector-width (or {width.ENV}) than {self.opt.vw}"
+                if self.opt.vw > 1 else "")
+        raise ProgramError(f"the {self.model.spec} program ({self.opt.real}, vector width {self.opt.vw}) "
+                           f"does not work on {self.device.name}: {failures[-1]}{hint}")
 
     # --- data ------------------------------------------------------------------------------------
     def cellset(self, tables, index=None, cutoff_deg=DEFAULT_CUTOFF_DEG, **kw) -> CellSet:

@@ -41,6 +41,7 @@ class FitOptions:
     cutoff_deg: float | None = DEFAULT_CUTOFF_DEG
     real: str = "float"
     device: str | None = None
+    vector_width: int | None = None     # CPU cells per work-item; None: brdfcl.width decides
     global_method: str = "lds"
     n_candidates: int = 256         # lds: Sobol candidates per material
     n_starts: int = 4               # lds: local searches per material
@@ -107,7 +108,7 @@ class Fitter:
         self.opts = opts
         self.model = Model(opts.model, fixed=opts.fixed)
         self.engine = engine or Engine(self.model, device=opts.device, real=opts.real,
-                                       metric=opts.metric, cosw=opts.cosw)
+                                       metric=opts.metric, cosw=opts.cosw, vector_width=opts.vector_width)
         self.full_index = select_cells(opts.cutoff_deg)
         self._lin = self.model.amplitude[self.model.free_index]
         self.order = PeakOrder.for_model(self.model) if opts.ct_peak else None

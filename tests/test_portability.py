@@ -1,0 +1,179 @@
+"""Programs that are right on the device they run on, whatever it reports about itself.
+
+The vector width is chosen by building and self-testing (brdfcl.width), the choice is
+cached per device, a broken PoCL kernel cache is repaired, and every PoCL build present
+(pip wheel, Debian's pocl-opencl-icd) gives the same results."""
+import json
+import os
+import subprocess
+import sys
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from brdfcl import selftest, width
+from brdfcl.device import all_devices, pocl_version
+from brdfcl.engine import Engine
+from brdfcl.fit import FitOptions, fit_tables
+from brdfcl.merl import read_merl
+from brdfcl.program import ProgramError, sound_bitcode, sound_elf
+
+POCL = [f"{i}" for i, (p, d) in enumerate(all_devices()) if "portable computing" in p.name.lower()]
+
+
+@pytest.fixture()
+def cache(tmp_path, monkeypatch):
+    monkeypatch.setenv("BRDFCL_CACHE_DIR", str(tmp_path / "brdfcl-cache"))
+    monkeypatch.delenv(width.ENV, raising=False)
+    return tmp_path / "brdfcl-cache" / "vector-widths.json"
+
+
+def _platform_device(selector=None):
+    from brdfcl.device import pick_device
+    return pick_device(selector)
+
+
+def test_falls_back_to_the_widest_width_that_passes(cache):
+    p, d = _platform_device()
+    calls = []
+
+    def fake_probe(selector, real, w):         # a device whose compiler targets half its width
+        calls.append(w)
+        if w > 4:
+            return {"ok": False, "detail": "crashed (signal 11)"}
+        return {"ok": True, "detail": "passed (max relative error 1e-07)"}
+    top = width.preferred(d, "float")
+    got = width.choose(p, d, "float", probe_fn=fake_probe)
+    assert got.width == min(4, top)
+    assert calls == [w for w in (16, 8, 4, 2, 1) if min(4, top) <= w <= top]
+    assert "crashed (signal 11)" in got.reason and f"{got.width} passed" in got.reason
+    # cached per device: a second choice (a second process) probes nothing
+    assert width.choose(p, d, "float", probe_fn=lambda *a: pytest.fail("probed again")).width == got.width
+    entry = next(iter(json.loads(cache.read_text()).values()))
+    assert entry["width"] == got.width and entry["real"] == "float"
+    # another precision is another decision
+    assert width.choose(p, d, "double", probe_fn=fake_probe).width == min(4, width.preferred(d, "double"))
+
+
+def test_no_width_works_is_one_clear_error(cache):
+    p, d = _platform_device()
+    with pytest.raises(ProgramError, match="no vector width works on .*: 16 failed: exit status 1"):
+        width.choose(p, d, "float", probe_fn=lambda s, r, w: {"ok": False, "detail": "exit status 1"}
+                     if w == 16 else {"ok": False, "detail": "wrong"})
+
+
+def test_override_by_argument_and_environment(cache, monkeypatch):
+    p, d = _platform_device()
+    assert width.choose(p, d, "float", explicit=2, probe_fn=pytest.fail).width == 2
+    monkeypatch.setenv(width.ENV, "4")
+    got = width.choose(p, d, "float", probe_fn=pytest.fail)
+    assert got.width == 4 and width.ENV in got.reason
+    monkeypatch.setenv(width.ENV, "3")
+    with pytest.raises(ValueError, match="BRDFCL_VECTOR_WIDTH='3': vector width must be one of 1, 2, 4, 8, 16"):
+        width.choose(p, d, "float")
+
+
+def test_the_real_probe_passes_and_detects_a_crash(cache):
+    p, d = _platform_device()
+    res = width.probe(width.device_selector(p, d), "double", 2)
+    assert res["ok"] and "passed" in res["detail"], res
+    crash = width.run_probe([sys.executable, "-c", "import os, signal; os.kill(os.getpid(), signal.SIGSEGV)"])
+    assert not crash["ok"] and crash["detail"] == "crashed (signal 11)"
+    noise = width.run_probe([sys.executable, "-c", "import sys; sys.exit('LLVM ERROR: Cannot select fma')"])
+    assert not noise["ok"] and "Cannot select fma" in noise["detail"]
+
+
+def test_self_test_catches_a_program_that_does_not_match_its_description():
+    eng = Engine("diffuse+ggx", metric="log")
+    assert eng.self_test.ok and eng.self_test.max_error < 1e-5
+    wrong = Engine("diffuse+ggx", metric="log")
+    wrong.opt = replace(wrong.opt, metric="l2")               # the program still computes log
+    res = selftest.check(wrong)
+    assert not res.ok and "relative error" in res.detail
+
+
+def test_forced_narrower_width_gives_the_same_fits(demo_db):
+    tables = [read_merl(demo_db / f"{n}.binary") for n in ("synth-smooth-metal", "synth-fabric")]
+    base = fit_tables(tables, FitOptions(model="diffuse+diffraction+ggx"))
+    narrow = fit_tables(tables, FitOptions(model="diffuse+diffraction+ggx", vector_width=2))
+    for a, b in zip(base, narrow):
+        assert a.success and b.success
+        assert b.loss == pytest.approx(a.loss, rel=1e-6), (a.name, a.loss, b.loss)
+
+
+def test_sound_file_checks(tmp_path):
+    assert not sound_elf(tmp_path / "missing.so")
+    so = tmp_path / "k.so"
+    so.write_bytes(b"\x7fELF" + b"\0" * 100)
+    assert not sound_elf(so)
+    libs = [p for p in (os.path.dirname(np.__file__) + "/_core",) for p in __import__("glob").glob(p + "/*.so")]
+    lib = open(libs[0], "rb").read()
+    so.write_bytes(lib)
+    assert sound_elf(so)
+    so.write_bytes(lib[: len(lib) // 2])
+    assert not sound_elf(so)
+    bc = tmp_path / "program.bc"
+    bc.write_bytes(b"BC\xc0\xde")
+    assert not sound_bitcode(bc)
+
+
+CORRUPT = {
+    "truncated program": lambda d: [p.write_bytes(p.read_bytes()[:100]) for p in d.rglob("program.bc")],
+    "empty program": lambda d: [p.write_bytes(b"") for p in d.rglob("program.bc")],
+    "truncated kernels": lambda d: [p.write_bytes(p.read_bytes()[:1000]) for p in d.rglob("*.so")],
+    "garbage kernels": lambda d: [p.write_bytes(os.urandom(4096)) for p in d.rglob("*.so")],
+}
+RUN = ("import numpy as np; from brdfcl.engine import Engine; from brdfcl.engine import select_cells; "
+       "e = Engine('diffuse+ggx'); idx = select_cells()[::97]; "
+       "cs = e.upload(['m'], idx, np.full((1, 3, idx.size), 0.1, np.float32)); "
+       "print(e.loss(cs, e.model.defaults(), [0])[0], e.self_test.ok)")
+
+
+@pytest.mark.parametrize("device", POCL)
+@pytest.mark.parametrize("damage", list(CORRUPT))
+def test_a_broken_pocl_cache_does_not_break_the_next_run(tmp_path, device, damage):
+    env = dict(os.environ, POCL_CACHE_DIR=str(tmp_path / "pocl"), BRDFCL_DEVICE=device,
+               BRDFCL_CACHE_DIR=str(tmp_path / "brdfcl"))
+
+    def run():
+        return subprocess.run([sys.executable, "-c", RUN], capture_output=True, text=True, env=env, timeout=600)
+    first = run()
+    assert first.returncode == 0, first.stderr[-2000:]
+    assert list((tmp_path / "pocl").rglob("*.so")), "PoCL wrote no kernel cache here"
+    CORRUPT[damage](tmp_path / "pocl")
+    again = run()
+    assert again.returncode == 0, again.stderr[-2000:]
+    assert again.stdout == first.stdout
+    assert "removed a broken PoCL kernel-cache entry" in again.stderr
+    assert run().stderr.count("removed") == 0                 # repaired for good
+
+
+@pytest.mark.skipif(len(POCL) < 2, reason="only one PoCL build installed (apt-get install pocl-opencl-icd adds Debian's)")
+def test_every_pocl_build_gives_the_same_fit(demo_db):
+    (table,) = [read_merl(demo_db / "synth-smooth-metal.binary")]
+    losses = {}
+    for dev in POCL:
+        (res,) = fit_tables([table], FitOptions(model="diffuse+diffraction+ggx", device=dev))
+        losses[dev] = res.loss
+        assert res.success
+    ref = losses[POCL[0]]
+    assert all(v == pytest.approx(ref, rel=1e-5) for v in losses.values()), losses
+
+
+def test_newest_pocl_is_the_default():
+    devs = [pd for pd in all_devices() if "portable computing" in pd[0].name.lower()]
+    if not devs:
+        pytest.skip("no PoCL platform")
+    from brdfcl.device import pick_device
+    p, _ = pick_device(None)
+    assert pocl_version(p) == max(pocl_version(q) for q, _ in devs)
+
+
+def test_info_shows_width_reason_and_self_test():
+    r = subprocess.run([sys.executable, "-m", "brdfcl.cli", "info"], capture_output=True, text=True, timeout=900)
+    assert r.returncode == 0, r.stderr
+    lines = [ln.strip() for ln in r.stdout.splitlines()]
+    float_lines = [ln for ln in lines if ln.startswith("float: vector width")]
+    assert len(float_lines) == len(all_devices())
+    assert all("self-test passed" in ln and "(" in ln for ln in float_lines), float_lines
