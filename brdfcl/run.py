@@ -4,13 +4,21 @@
 batches (all materials of a batch share every launch); each finished material
 is written at once (NAME.json, optionally NAME.binary with the fitted model),
 and summary.csv is rewritten from every NAME.json in the output folder.
+
+Input data is read-only: an output folder that is, holds or is inside the input folder, or
+holds an input file (symlinks resolved), is refused before any work
+(``check_output_not_input``).  Re-running into an output folder reuses a finished result only
+if it was made with the same options (brdfcl.output.resume_state); a result of other options
+stops the run before any work (``ResultsDiffer``) unless ``overwrite``.  A finished fit whose
+export is missing is exported without refitting.
 """
 from __future__ import annotations
 
+import json
 import os
 import sys
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 
@@ -18,8 +26,23 @@ from .engine import Engine
 from .fit import FitOptions, Fitter, load_batch
 from .merl import MerlError, list_database, material_name, read_merl
 from .model import Model
-from .output import (export_fit, is_finished, remove_stale_temporaries, result_document, write_result,
-                     write_summary)
+from .output import (export_fit, recorded_options, remove_stale_temporaries, result_document, resume_state,
+                     write_result, write_summary)
+
+
+class InputOverwriteError(ValueError):
+    """An output that would be, hold or sit inside the input data (brdfcl never writes there)."""
+
+
+class ResultsDiffer(ValueError):
+    """The output folder holds results made with other options than this run's."""
+
+
+# CLI flags of recorded options, for messages (a dotted name first, then its first part)
+OPTION_FLAGS = {"model": "--model", "metric": "--metric", "cosw": "--no-cos", "cutoff_deg": "--cutoff",
+                "real": "--double", "global_method": "--global", "n_candidates": "--candidates",
+                "n_starts": "--starts", "lm.max_iter": "--max-iter", "seed": "--seed", "fixed": "--fix",
+                "ct_peak": "--ct-peak", "select_lobes": "--select-lobes", "free_peak": "--free-peak"}
 
 
 @dataclass
@@ -39,6 +62,45 @@ def database_paths(source) -> list[str]:
     if isinstance(source, (str, os.PathLike)):
         return [os.fspath(source)] if os.path.isfile(source) else list_database(source)
     return [os.fspath(p) for p in source]
+
+
+def _forms(path):
+    """A path as given (absolute, normalised) and with every symlink resolved."""
+    return {os.path.abspath(path), os.path.realpath(path)}
+
+
+def _within(a, b):
+    """a is b or inside it."""
+    return a == b or os.path.commonpath([a, b]) == b
+
+
+def check_output_not_input(source, out, paths=None):
+    """Refuse (InputOverwriteError, one line) an output folder that is, is inside or holds the input
+    folder, or that is or holds an input file; paths as given and with symlinks resolved (a
+    folder of links: the links' targets are inputs too).  ``source``: folder, file or list of
+    files as for fit_all; ``paths``: its files if already listed.  Call before any work
+    (fit_all and brdfcl.analyze do)."""
+    paths = database_paths(source) if paths is None else paths
+    outs = _forms(out)
+    if isinstance(source, (str, os.PathLike)) and os.path.isdir(source):
+        for f in sorted(_forms(source)):
+            for o in sorted(outs):
+                how = ("is the input folder" if o == f else "is inside the input folder" if _within(o, f)
+                       else "holds the input folder" if _within(f, o) else None)
+                if how:
+                    _refuse(out, how, f)
+    for p in paths:
+        files = _forms(p) | {os.path.join(os.path.realpath(os.path.dirname(os.path.abspath(p))),
+                                          os.path.basename(p))}
+        for f in sorted(files):
+            for o in sorted(outs):
+                if _within(f, o):
+                    _refuse(out, "is the input file" if o == f else "holds the input file", f)
+
+
+def _refuse(out, how, what):
+    raise InputOverwriteError(f"output folder {out} {how} {what}: input data is read-only to brdfcl; "
+                              f"choose an output folder outside the input data")
 
 
 def check_output_dir(out):
@@ -71,38 +133,38 @@ class Progress:
 
 
 def fit_all(source, out=None, options: FitOptions | None = None, batch=100, export=False,
-            quiet=True, log=None, client=None, select_lobes=False, free_peak=False, **kw) -> RunReport:
+            quiet=True, log=None, client=None, select_lobes=False, free_peak=False, overwrite=False,
+            **kw) -> RunReport:
     """Fit every material of a database; write results to ``out`` if given.
 
     ``source``: folder, file or list of files.  ``options`` or keyword arguments
     give the FitOptions.  ``client``: a dask.distributed Client to spread batches
-    over workers (see brdfcl.cluster)."""
+    over workers (see brdfcl.cluster).  ``out`` may not be, hold or be inside the input
+    (InputOverwriteError).  Results already in ``out`` are reused when made with the same
+    options; results of other options raise ResultsDiffer before any work, or with
+    ``overwrite`` are refitted and replaced."""
     opts = options or FitOptions(**kw)
     log = log or (lambda s: None)
     t0 = time.perf_counter()
     paths = database_paths(source)
     report = RunReport()
-    fitter = None
+    if select_lobes:        # what the lobe comparison fits with (brdfcl.analyze), so what is recorded
+        opts = replace(opts, fixed={}, ct_peak=not free_peak)
+    models = Models(opts, select_lobes=select_lobes, free_peak=free_peak)
+    todo = paths
     if out is not None:
+        check_output_not_input(source, out, paths)
         out = check_output_dir(out)
-        remove_stale_temporaries(out)
-    model_spec, todo = Model(opts.model, fixed=opts.fixed).spec, []
-    for p in paths:
-        if out is not None and is_finished(out, material_name(p), model_spec, opts.metric, select_lobes):
-            report.resumed.append(material_name(p))
-        else:
-            todo.append(p)
-    if report.resumed:
-        log(f"resuming: {len(report.resumed)} materials already finished in {out}")
+        todo = _resume(paths, out, models, export, overwrite, report, log)
     if select_lobes:
-        return _fit_selected(todo, out, opts, batch, export, report, log, t0, free_peak)
+        return _fit_selected(todo, out, opts, batch, export, report, log, t0, models)
     if client is not None:
         from .cluster import fit_on_cluster
         return fit_on_cluster(client, todo, out, opts, batch, export, report, log, quiet, t0)
     progress = Progress(len(todo), quiet)
     try:
         for s in range(0, len(todo), batch):
-            fitter = fitter or Fitter(opts)
+            fitter = models.main_fitter()
             part = todo[s:s + batch]
 
             def on_error(item, e, part=part):
@@ -113,11 +175,62 @@ def fit_all(source, out=None, options: FitOptions | None = None, batch=100, expo
             if not names:
                 continue
             log(f"batch of {len(names)} materials loaded")
-            handle = result_writer(out, Models(opts, fitter.engine), export, report, progress)
+            handle = result_writer(out, models, export, report, progress)
             fitter.fit(names, full, coarse, on_result=handle, log=log)
     finally:
         finish_run(progress, out, report, t0)
     return report
+
+
+def _resume(paths, out, models, export, overwrite, report, log):
+    """What is left to fit in ``out``: reuse finished results made with the same options (writing a
+    missing export without refitting); stop on results of other options unless ``overwrite``."""
+    remove_stale_temporaries(out)
+    todo, differ, exports, replaced = [], [], [], 0
+    for p in paths:
+        name = material_name(p)
+        state, info = resume_state(out, name, models.options)
+        if state == "done":
+            report.resumed.append(name)
+            if export and not (out / f"{name}.binary").exists():
+                exports.append(info)
+        elif state == "differs" and not overwrite:
+            differ.append((name, info))
+        else:
+            replaced += state == "differs"
+            todo.append(p)
+    if differ:
+        raise ResultsDiffer(_differ_message(out, differ, len(paths), models.options))
+    if report.resumed:
+        log(f"resuming: {len(report.resumed)} materials already finished in {out}")
+    if replaced:
+        log(f"overwrite: refitting {replaced} results made with other options")
+    for doc in exports:
+        export_fit(out / f"{doc['material']}.binary", models.engine(doc["model"]),
+                   {k: v["value"] for k, v in doc["params"].items()})
+    if exports:
+        log(f"exported {len(exports)} finished fits without refitting")
+    return todo
+
+
+def _differ_message(out, differ, total, current):
+    name, (option, old, new) = differ[0]
+    where = out / f"{name}.json"
+    many = f" (and {len(differ) - 1} more of the {total} materials)" if len(differ) > 1 else ""
+    if option is None:
+        what = "was written by an older brdfcl that did not record its options"
+    else:
+        flag = OPTION_FLAGS.get(option) or OPTION_FLAGS.get(option.split(".")[0])
+        if option == "ct_peak" and current.get("select_lobes"):     # --select-lobes sets it from --free-peak
+            flag = "--free-peak"
+
+        def show(v):
+            plain = isinstance(v, (type(None), bool, int, float, str, list, dict))
+            return json.dumps(v) if plain else "absent"
+        what = (f"was made with other options: {option}{f' ({flag})' if flag else ''} is {show(old)} there, "
+                f"{show(new)} now")
+    return (f"{where} {what}{many}; to proceed, give a new --out, or --overwrite (overwrite=True) to "
+            f"refit and replace those results")
 
 
 def finish_run(progress, out, report, t0):
@@ -145,13 +258,24 @@ class FileReader:
 
 class Models:
     """Model, and compiled engine on demand, per model spec: what writing and exporting results
-    need.  The fitted model carries the run's fixed parameters; selected sub-models have none."""
+    need, with the options every result records (brdfcl.output.recorded_options).  The fitted
+    model carries the run's fixed parameters; selected sub-models have none."""
 
-    def __init__(self, opts, engine=None):
+    def __init__(self, opts, engine=None, select_lobes=False, free_peak=False):
         self.opts = opts
+        self.options = recorded_options(opts, select_lobes, free_peak)
         main = Model(opts.model, fixed=opts.fixed)
+        self.main = main.spec
         self._models = {main.spec: main}
         self._engines = {main.spec: engine} if engine is not None else {}
+        self._fitter = None
+
+    def main_fitter(self):
+        """The Fitter of the run's model; exports of that model share its engine (built once)."""
+        if self._fitter is None:
+            self._fitter = Fitter(self.opts, engine=self._engines.get(self.main))
+            self._engines[self.main] = self._fitter.engine
+        return self._fitter
 
     def model(self, spec):
         if spec not in self._models:
@@ -159,32 +283,47 @@ class Models:
         return self._models[spec]
 
     def engine(self, spec):
+        if spec == self.main and spec not in self._engines:
+            return self.main_fitter().engine
         if spec not in self._engines:
             o = self.opts
             self._engines[spec] = Engine(self.model(spec), device=o.device, real=o.real, metric=o.metric,
-                                         cosw=o.cosw)
+                                         cosw=o.cosw, vector_width=getattr(o, "vector_width", None))
         return self._engines[spec]
 
 
 def result_writer(out, models: Models, export, report, progress):
-    """Record each result; with an output folder, write NAME.json (and NAME.binary) and summary.csv."""
+    """Record each result; with an output folder, write NAME.json (with the options that made it)
+    and NAME.binary (removing an earlier fit's NAME.binary without export), then summary.csv.
+    ``out`` has passed check_output_not_input (fit_all, before any work)."""
+    options = {**models.options, "export": bool(export)}
+
     def handle(res, extra=None):
         report.results.append(res)
         if out is not None:
-            write_result(out, result_document(res, models.model(res.model), extra))
+            binary = Path(out) / f"{res.name}.binary"
+            write_result(out, result_document(res, models.model(res.model), extra, options))
             if export:
-                export_fit(Path(out) / f"{res.name}.binary", models.engine(res.model), res.params)
+                export_fit(binary, models.engine(res.model), res.params)
+            elif binary.is_file() and not binary.is_symlink():  # tabulates a fit this one replaces
+                binary.unlink()
             write_summary(out)
         progress.done(res)
     return handle
 
 
-def _fit_selected(paths, out, opts, batch, export, report, log, t0, free_peak=False):
+def _fit_selected(paths, out, opts, batch, export, report, log, t0, models):
     """--select-lobes: the lobe comparison of brdfcl.analyze decides each material's model;
     its final fit (without the diffraction lobe where the verdict is 'none') is the result."""
     from .analyze import analyze
-    write = result_writer(out, Models(opts), export, report, Progress(0, True))
-    analyze(paths, None, opts, batch=batch, log=log, figures=False, ct_peak=not free_peak,
+    if not paths:
+        report.seconds = time.perf_counter() - t0
+        return report
+    write = result_writer(out, models, export, report, Progress(0, True))
+    def on_skip(path, why):
+        report.skipped[path] = why
+        log(f"skipped: {why}")
+    analyze(paths, None, opts, batch=batch, log=log, figures=False, ct_peak=opts.ct_peak, on_skip=on_skip,
             on_material=lambda a: write(a.final, {"selected_by": "lobe comparison", "verdict": a.verdict}))
     report.seconds = time.perf_counter() - t0
     return report
