@@ -16,6 +16,9 @@ def __getattr__(name):
     if name == "Engine":
         from .engine import Engine
         return Engine
+    import importlib.util
+    if not name.startswith("_") and importlib.util.find_spec(f"{__name__}.{name}") is not None:
+        return importlib.import_module(f"{__name__}.{name}")    # submodules: brdfcl.cluster.make_client
     raise AttributeError(f"module 'brdfcl' has no attribute '{name}'")
 
 

@@ -16,6 +16,7 @@ shows what the constraint costs and which lobe a free fit would put on the peak.
 """
 from __future__ import annotations
 
+import os
 import time
 from dataclasses import dataclass, field, replace
 
@@ -25,10 +26,10 @@ from .fit import FitOptions, Fitter, load_batch
 from .geometry import bin_centres, directions
 from .gradient_test import GradientMap, gradient_test, phi90_slice
 from .lobes.cells import Cells
-from .merl import material_name, read_merl
+from .merl import MerlError, read_merl
 from .model import Model
 from .peak_order import peak_cell
-from .run import FileReader, database_paths
+from .run import FileReader, check_output_not_input, database_paths
 from .selection import select, variants
 from .wavelength import WavelengthCheck, wavelength_check
 
@@ -150,30 +151,57 @@ def analyze_material(name, brdf, fits, specs) -> MaterialAnalysis:
                             peak_share(specs["full"], free.params) if free else float("nan"))
 
 
+class Analyses(list):
+    """What ``analyze`` returns: the list of MaterialAnalysis, plus ``skipped``, {path: reason} for
+    every file that could not be read (as RunReport.skipped of ``fit_all``); ``ok`` if none was."""
+
+    def __init__(self, items=(), skipped=None):
+        super().__init__(items)
+        self.skipped = dict(skipped or {})
+
+    @property
+    def ok(self):
+        return not self.skipped
+
+
 def analyze(source, out=None, options: FitOptions | None = None, batch=100, log=None, figures=True,
-            on_material=None, ct_peak=True):
-    """Analyse every material of a database; writes analysis.csv, maps, figures and index.html."""
+            on_material=None, ct_peak=True, on_skip=None) -> Analyses:
+    """Analyse every material of a database; writes analysis.csv, maps, figures and index.html.
+
+    A file that cannot be read is skipped: recorded in the result's ``skipped`` and reported to
+    ``on_skip(path, reason)`` (default: ``log("skipped: reason")``); the rest is analysed.  Raises
+    MerlError when files were given but none could be read; before any work, OSError when ``out``
+    cannot be written and brdfcl.run.InputOverwriteError when it is, holds or is inside the input."""
     from . import report
     opts = options or FitOptions()
     log = log or (lambda s: None)
+    on_skip = on_skip or (lambda path, why: log(f"skipped: {why}"))
     specs = variants(Model(opts.model).spec)
     if set(specs) != {"full", "no_diffraction", "no_ct"}:
         raise ValueError(f"analysis needs a model with diffuse, diffraction and Cook-Torrance lobes, "
                          f"got '{opts.model}'")
     paths = database_paths(source)
+    results = Analyses()
+    if out is not None:                     # one-line errors, before any work
+        check_output_not_input(source, out, paths)
+        report.prepare(out)
     fitters = {k: Fitter(replace(opts, model=s, fixed={}, ct_peak=ct_peak)) for k, s in specs.items()}
     base = fitters["full"]
     if ct_peak:     # the constrained fit from both global searches (brdfcl.fit), and a free one
         fitters["full_local"] = Fitter(replace(base.opts, ct_peak_global=False), engine=base.engine)
         fitters["full_free"] = Fitter(replace(base.opts, ct_peak=False), engine=base.engine)
         specs["full_free"] = specs["full_local"] = specs["full"]
-    results = []
-    if out is not None:
-        report.prepare(out)
+
+    def skip(item, e):
+        path = getattr(item, "path", None) or str(item)
+        results.skipped[path] = str(e)
+        on_skip(path, str(e))
     for s in range(0, len(paths), batch):
         part = paths[s:s + batch]
-        names, full, coarse = load_batch([FileReader(p) for p in part], base,
-                                         on_error=lambda item, e: log(f"skipped: {e}"))
+        names, full, coarse = load_batch([FileReader(p) for p in part], base, on_error=skip)
+        if not names:
+            continue
+        read = [p for p in part if p not in results.skipped]      # in the order of names
         fits = {}
         for k, f in fitters.items():
             t = time.perf_counter()
@@ -183,8 +211,12 @@ def analyze(source, out=None, options: FitOptions | None = None, batch=100, log=
         if "full_local" in fits:
             other = fits.pop("full_local")
             fits["full"] = {n: (r if r.loss <= other[n].loss else other[n]) for n, r in fits["full"].items()}
-        for name, path in zip(names, [p for p in part if material_name(p) in set(names)]):
-            brdf = read_merl(path).brdf()
+        for name, path in zip(names, read):
+            try:
+                brdf = read_merl(path).brdf()
+            except MerlError as e:          # changed or removed since it was fitted
+                skip(FileReader(path), e)
+                continue
             a = analyze_material(name, brdf, {k: fits[k][name] for k in fits}, specs)
             if figures or out is not None:
                 a.slices = {"measured": phi90_slice(brdf)[0], **lobe_images(specs["full"], a.fits["full"].params)}
@@ -197,5 +229,8 @@ def analyze(source, out=None, options: FitOptions | None = None, batch=100, log=
                 f"{a.gradient.mean_score:.2f}, wavelength ratio {a.wavelength.ratio:.2f})")
         if out is not None:
             report.write_index(out, results)
+    if results.skipped and not results:
+        where = source if isinstance(source, (str, os.PathLike)) else "the given files"
+        n = len(results.skipped)
+        raise MerlError(f"{where}: no readable material to analyse ({n} file{'s' * (n != 1)} skipped)")
     return results
-

@@ -4,6 +4,7 @@ from __future__ import annotations
 import csv
 import html
 import io
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -13,8 +14,23 @@ from .output import atomic_write_text
 
 
 def prepare(out):
-    Path(out).mkdir(parents=True, exist_ok=True)
-    (Path(out) / "figures").mkdir(exist_ok=True)
+    """Create ``out`` and ``out/figures``: a one-line OSError naming the folder if either cannot be
+    written (brdfcl.run.check_output_dir); temporaries of a run killed mid-write are removed."""
+    from .output import remove_stale_temporaries
+    from .run import check_output_dir
+    for d in (check_output_dir(out), check_output_dir(Path(out) / "figures")):
+        remove_stale_temporaries(d)
+
+
+@contextmanager
+def writing(path):
+    """A failed write of ``path`` as one line naming it (OpenEXR reports I/O errors as RuntimeError)."""
+    try:
+        yield
+    except (OSError, RuntimeError) as e:
+        why = e.strerror if isinstance(e, OSError) and e.strerror else str(e)
+        why = (why.strip().splitlines() or [type(e).__name__])[0]
+        raise OSError(f"{path}: cannot write: {why}") from e
 
 
 def write_exr(path, channels: dict):
@@ -23,9 +39,10 @@ def write_exr(path, channels: dict):
     data = {k: np.ascontiguousarray(np.nan_to_num(v, nan=-1.0), dtype=np.float32) for k, v in channels.items()}
     hdr = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
     tmp = str(path) + ".tmp.exr"
-    with OpenEXR.File(hdr, data) as f:
-        f.write(tmp)
-    Path(tmp).replace(path)
+    with writing(path):
+        with OpenEXR.File(hdr, data) as f:
+            f.write(tmp)
+        Path(tmp).replace(path)
 
 
 def _extent():
@@ -35,8 +52,9 @@ def _extent():
 
 def _save(fig, path):
     tmp = str(path) + ".tmp.png"
-    fig.savefig(tmp, dpi=90)
-    Path(tmp).replace(path)
+    with writing(path):
+        fig.savefig(tmp, dpi=90)
+        Path(tmp).replace(path)
 
 
 def figure_gradient(a, path):
@@ -131,7 +149,8 @@ def write_index(out, analyses):
         w = csv.DictWriter(buf, fieldnames=list(rows[0]), lineterminator="\n")
         w.writeheader()
         w.writerows(rows)
-    atomic_write_text(out / "analysis.csv", buf.getvalue())
+    with writing(out / "analysis.csv"):
+        atomic_write_text(out / "analysis.csv", buf.getvalue())
     cols = ["material", "verdict", "selected_lobes", "grad_score_g", "grad_cells", "grad_band_deg_g",
             "wavelength_ratio", "rmse_log_full", "rmse_log_no_diffraction", "rmse_log_no_ct",
             "peak_share_diffraction", "rmse_log_full_free", "peak_share_free"]
@@ -161,4 +180,5 @@ def write_index(out, analyses):
         h += [f"<a href='figures/{a.name}_{k}.png'><img src='figures/{a.name}_{k}.png' alt='{k}'></a>"
               for k in ("gradient", "wavelength", "components")]
         h.append("</div>")
-    atomic_write_text(out / "index.html", "\n".join(h))
+    with writing(out / "index.html"):
+        atomic_write_text(out / "index.html", "\n".join(h))
