@@ -9,6 +9,10 @@ FMA kernel for arithmetic).  Times are medians of --repeat runs; speed-ups are
 ratios of throughputs (material-cells per second) measured side by side.
 
     python bench/bench_eval.py [--data DIR] [--model diffuse+diffraction+ggx]
+
+It also compares, round-robin in the same run, every PoCL build present (the pip
+wheel's, Debian's pocl-opencl-icd) at the width brdfcl chooses and at the narrower
+safe widths.
 """
 from __future__ import annotations
 
@@ -57,45 +61,107 @@ def median_time(fn, repeat):
     return float(np.median(ts))
 
 
-ROOF_SRC = """
-__kernel void stream(__global const float16 *a, __global float *out, const int n) {
+def roof_source(vw):
+    """Streaming-read and FMA kernels in vectors of the engine's own width (a width the
+    device's compiler may not target, such as 16 on a Zen 4 with the pip PoCL, fails to build)."""
+    v = f"float{vw}" if vw > 1 else "float"
+    lanes = " + ".join(f"s.s{i:x}" for i in range(vw)) if vw > 1 else "s"
+    return f"""
+__kernel void stream(__global const {v} *a, __global float *out, const int n) {{
     const int g = get_global_id(0), ng = get_global_size(0);
-    float16 s = 0;
+    {v} s = 0;
     for (int i = g; i < n; i += ng) s += a[i];
-    out[g] = s.s0 + s.s1 + s.s2 + s.s3 + s.s4 + s.s5 + s.s6 + s.s7 + s.s8 + s.s9 + s.sa + s.sb + s.sc + s.sd + s.se + s.sf;
-}
-__kernel void fma_peak(__global float *out, const int iters) {
+    out[g] = {lanes};
+}}
+__kernel void fma_peak(__global float *out, const int iters) {{
     const int g = get_global_id(0);
-    float16 a = (float16)(g * 1e-7f), b = (float16)0.999f, c = (float16)1e-3f, d = a + 1, e = a + 2, f = a + 3;
-    for (int i = 0; i < iters; i++) {
+    {v} a = ({v})(g * 1e-7f), b = ({v})0.999f, c = ({v})1e-3f, d = a + 1, e = a + 2, f = a + 3;
+    for (int i = 0; i < iters; i++) {{
         a = fma(a, b, c); d = fma(d, b, c); e = fma(e, b, c); f = fma(f, b, c);
-    }
-    float16 s = a + d + e + f;
-    out[g] = s.s0 + s.s5 + s.sa + s.sf;
-}
+    }}
+    {v} s = a + d + e + f;
+    out[g] = {lanes};
+}}
 """
 
 
 def roofline(eng, repeat):
     ctx, queue, dev = eng.ctx, eng.queue, eng.device
-    prg = cl.Program(ctx, ROOF_SRC).build()
-    n16 = (256 << 20) // 64                                  # 256 MiB of float16
-    a = cl.Buffer(ctx, cl.mem_flags.READ_ONLY, n16 * 64)
-    cl.enqueue_fill_buffer(queue, a, np.float32(1), 0, n16 * 64)
+    vw = eng.opt.vw
+    prg = cl.Program(ctx, roof_source(vw)).build()
+    nv = (256 << 20) // (4 * vw)                             # 256 MiB of float vectors
+    a = cl.Buffer(ctx, cl.mem_flags.READ_ONLY, nv * 4 * vw)
+    cl.enqueue_fill_buffer(queue, a, np.float32(1), 0, nv * 4 * vw)
     nw = dev.max_compute_units * 64
     out = cl.Buffer(ctx, cl.mem_flags.WRITE_ONLY, nw * 4)
 
     k_stream, k_peak = cl.Kernel(prg, "stream"), cl.Kernel(prg, "fma_peak")
 
     def stream():
-        k_stream(queue, (nw,), None, a, out, np.int32(n16)).wait()
-    bw = n16 * 64 / median_time(stream, repeat)
-    iters = 20000
+        k_stream(queue, (nw,), None, a, out, np.int32(nv)).wait()
+    bw = nv * 4 * vw / median_time(stream, repeat)
+    iters = 20000 * 16 // vw
 
     def peak():
         k_peak(queue, (nw,), None, out, np.int32(iters)).wait()
-    flops = nw * iters * 4 * 16 * 2 / median_time(peak, repeat)
+    flops = nw * iters * 4 * vw * 2 / median_time(peak, repeat)
     return bw, flops
+
+
+def pocl_devices():
+    """Flat device indices (brdfcl info) of every PoCL CPU device present."""
+    from brdfcl.device import all_devices
+    return [str(i) for i, (p, d) in enumerate(all_devices())
+            if "portable computing" in p.name.lower() and d.type & cl.device_type.CPU]
+
+
+def compare(args, paths, n_mat):
+    """Loss + gradient throughput of every PoCL build present at the width brdfcl chooses and at
+    the narrower safe widths (8 floats, 4 doubles), measured round-robin in one run: each round
+    times every configuration once, so machine noise hits them alike; medians over rounds."""
+    from brdfcl.engine import extract
+    idx = select_cells()
+    configs = []
+    for dev in pocl_devices():
+        for real, safe in (("float", 8), ("double", 4)):
+            chosen = Engine(args.model, device=dev, real=real, metric=args.metric)
+            for vw in sorted({chosen.opt.vw, safe}, reverse=True):
+                eng = chosen if vw == chosen.opt.vw else Engine(args.model, device=dev, real=real,
+                                                                metric=args.metric, vector_width=vw)
+                configs.append({"device": dev, "platform": eng.device.platform.version.split("  ")[0],
+                                "real": real, "vw": vw, "chosen": vw == chosen.opt.vw, "eng": eng})
+    names, (data,) = extract([read_merl(p) for p in paths[:n_mat]], [idx], np.float64)
+    for c in configs:
+        c["cs"] = c["eng"].upload(names, idx, data.astype(c["eng"].dtype))
+    V = np.tile(configs[0]["eng"].model.defaults(), (len(names), 1))
+    mats = np.arange(len(names))
+    times = {i: [] for i in range(len(configs))}
+    for i, c in enumerate(configs):                           # warm-up: lazy kernel compiles
+        c["eng"].grad(c["cs"], V, mats)
+    for _ in range(args.repeat):
+        for i, c in enumerate(configs):
+            t = time.perf_counter()
+            c["eng"].grad(c["cs"], V, mats)
+            times[i].append(time.perf_counter() - t)
+    for i, c in enumerate(configs):
+        c["seconds"] = float(np.median(times[i]))
+        c["rate"] = len(names) * idx.size / c["seconds"]
+        del c["cs"], c["eng"]
+    return configs, len(names)
+
+
+def compare_lines(configs, n_mat, repeat):
+    base = {c["real"]: c for c in configs if c["chosen"] and c["device"] == configs[0]["device"]}
+    lines = ["## Vector widths and PoCL builds, side by side", "",
+             f"Loss + gradient of all {n_mat} materials in one launch, every configuration timed once per "
+             f"round, {repeat} rounds, medians; ratios against the default device's chosen width "
+             f"(`*`: the width brdfcl chooses on that device).", "",
+             "| PoCL | precision | vector width | time (s) | material-cells/s | relative throughput |",
+             "|---|---|---|---|---|---|"]
+    for c in configs:
+        lines.append(f"| {c['platform']} | {c['real']} | {c['vw']}{' *' if c['chosen'] else ''} | "
+                     f"{c['seconds']:.3f} | {c['rate']:.3g} | {c['rate'] / base[c['real']]['rate']:.2f} |")
+    return lines
 
 
 _OPS = re.compile(r"(?<![eE])[-+*/](?!=)|\b(?:fmin|fmax)\b")
@@ -137,6 +203,8 @@ def main(argv=None):
     ap.add_argument("--numpy-materials", type=int, default=2,
                     help="materials timed with numpy (it is slow; throughput is per material-cell)")
     ap.add_argument("--device", default=None)
+    ap.add_argument("--compare-materials", type=int, default=24,
+                    help="materials in the side-by-side comparison of widths and PoCL builds (0: skip it)")
     ap.add_argument("--out", default=str(HERE / "results"))
     args = ap.parse_args(argv)
 
@@ -191,7 +259,8 @@ def main(argv=None):
     lines = [f"# bench_eval: loss + gradient throughput ({datetime.date.today()})", "",
              f"Data: MERL-proxy ({n_mat} materials from {data}), {n_cells} cells per material "
              f"(80 degree cut-off). Model `{model.spec}` ({model.n_free} free parameters), metric "
-             f"`{args.metric}`. Device: {eng32.device.name} ({eng32.device.platform.version}). "
+             f"`{args.metric}`. Device: {eng32.device.name} ({eng32.device.platform.version}), "
+             f"vector width {eng32.opt.vw} float / {eng64.opt.vw} double (chosen by brdfcl.width). "
              f"brdfcl {__version__}. Medians of {args.repeat} runs; numpy timed on {k} materials.", "",
              "| implementation | materials | time per evaluation of all of them (s) | "
              "material-cells/s | speed-up vs numpy float64 |", "|---|---|---|---|---|"]
@@ -207,6 +276,10 @@ def main(argv=None):
               f"{100 * achieved / attainable:.0f}% of the roofline "
               f"({'compute' if ai * bw > peak else 'memory'} bound)", "",
               f"Database load (read 80 files, upload float32 cells): {notes['load_s']:.1f} s."]
+    cmp_rows = []
+    if args.compare_materials:
+        cmp_rows, n_cmp = compare(args, paths, min(args.compare_materials, n_mat))
+        lines += [""] + compare_lines(cmp_rows, n_cmp, args.repeat)
     text = "\n".join(lines)
     print(text)
     out = Path(args.out)
@@ -214,7 +287,8 @@ def main(argv=None):
     (out / "bench_eval.md").write_text(text + "\n")
     (out / "bench_eval.json").write_text(json.dumps({
         "rows": [dict(zip(("name", "materials", "seconds", "rate"), r)) for r in rows],
-        "bandwidth": bw, "peak": peak, "ops": ops, "transcendentals": trans}, indent=1))
+        "bandwidth": bw, "peak": peak, "ops": ops, "transcendentals": trans, "vector_width": eng32.opt.vw,
+        "compare": cmp_rows}, indent=1))
     return 0
 
 

@@ -15,13 +15,30 @@ class UsageError(Exception):
 def cmd_info(args):
     import pyopencl as cl
 
-    from .device import describe, pick_device
+    from .device import all_devices, describe_device, has_fp64, pick_device
     print(f"brdfcl {__version__}, pyopencl {cl.VERSION_TEXT}")
-    for line in describe():
-        print(line)
+    for i, (p, d) in enumerate(all_devices()):
+        for line in describe_device(i, p, d):
+            print(line)
+        for real in ("float", "double") if has_fp64(d) else ("float",):
+            print(f"     {real}: {_program_check(i, real, args.vector_width)}", flush=True)
     p, d = pick_device(args.device)
     print(f"default device: {d.name} on {p.name} ({p.version})")
     return 0
+
+
+def _program_check(index, real, vector_width):
+    """The width used for the default model on a device, why, and its program's self-test."""
+    from .engine import Engine
+    from .model import DEFAULT_MODEL
+    from .program import ProgramError
+    try:
+        eng = Engine(DEFAULT_MODEL, device=str(index), real=real, vector_width=vector_width)
+    except (ProgramError, ValueError) as e:
+        return f"no working program: {e}"
+    w = eng.width
+    why = w.reason if w is not None else "not a CPU: one cell per work-item"
+    return f"vector width {eng.opt.vw} ({why}); self-test {eng.self_test}"
 
 
 def cmd_synth(args):
@@ -60,6 +77,7 @@ def fit_options(args):
                       real="double" if args.double else "float", device=args.device,
                       global_method=args.global_method, n_candidates=args.candidates,
                       n_starts=args.starts, seed=args.seed, fixed=fixed, ct_peak=args.ct_peak,
+                      vector_width=args.vector_width,
                       lm=LMOptions(max_iter=args.max_iter))
 
 
@@ -85,7 +103,7 @@ def cmd_fit_all(args):
     try:
         report = fit_all(source, args.out, opts, batch=args.batch, export=args.export_merl,
                          quiet=args.quiet, log=log, client=client, select_lobes=args.select_lobes,
-                         free_peak=args.free_peak)
+                         free_peak=args.free_peak, overwrite=args.overwrite)
     finally:
         if client is not None:
             client.close()
@@ -103,12 +121,15 @@ def cmd_fit_all(args):
 def cmd_analyze(args):
     from .analyze import analyze
     source, opts, log = _database_job(args)
+
+    def on_skip(path, why):                 # as fit-all: one line per file, also with --quiet
+        print(f"skipped: {why if path in why else f'{path}: {why}'}", file=sys.stderr, flush=True)
     res = analyze(source, args.out, opts, batch=args.batch, log=log, figures=not args.no_figures,
-                  ct_peak=not args.free_peak)
+                  ct_peak=not args.free_peak, on_skip=on_skip)
     n = sum(a.verdict == "diffraction" for a in res)
-    print(f"analysed {len(res)} materials: {n} with diffraction, {len(res) - n} without; "
-          f"see {args.out}/analysis.csv and {args.out}/index.html")
-    return 0
+    print(f"analysed {len(res)} materials: {n} with diffraction, {len(res) - n} without, "
+          f"{len(res.skipped)} skipped; see {args.out}/analysis.csv and {args.out}/index.html")
+    return 0 if res.ok else 1
 
 
 def cmd_params(args):
@@ -135,6 +156,9 @@ def add_fit_arguments(p):
                    help="leave out cells with theta_i or theta_o beyond this angle (degrees, default 80)")
     p.add_argument("--double", action="store_true", help="float64 kernels and data (default float32)")
     p.add_argument("--device", default=None, help="OpenCL device index or name (default: PoCL CPU)")
+    p.add_argument("--vector-width", type=int, default=None, choices=(1, 2, 4, 8, 16),
+                   help="cells per work-item on a CPU (default: the widest that passes the self-test; "
+                        "also BRDFCL_VECTOR_WIDTH)")
     p.add_argument("--global", dest="global_method", default="lds", choices=GLOBAL_METHODS,
                    help="global search (default lds: Sobol candidates + nlopt L-BFGS starts)")
     p.add_argument("--candidates", type=int, default=256, help="Sobol candidates per material (lds)")
@@ -168,8 +192,9 @@ def build_parser():
     add = sub.add_parser
     sub.add_parser = lambda *a, **kw: add(*a, parents=[common], **kw)
 
-    p = sub.add_parser("info", help="list OpenCL platforms and devices")
+    p = sub.add_parser("info", help="list OpenCL devices, the vector width used on each and its self-test")
     p.add_argument("--device", default=None, help="device index or name (default: PoCL CPU)")
+    p.add_argument("--vector-width", type=int, default=None, help="check this width instead of choosing")
     p.set_defaults(func=cmd_info)
 
     p = sub.add_parser("synth", help="write the synthetic demo database (MERL format)")
@@ -181,8 +206,12 @@ def build_parser():
     p.set_defaults(func=cmd_synth)
 
     p = sub.add_parser("fit-all", help="fit every .binary of a folder (or --demo)")
-    add_database_arguments(p, "fit", "output folder (resumes what is already there)")
+    add_database_arguments(p, "fit", "output folder, outside the input data (resumes results "
+                                      "made there with the same options)")
     p.add_argument("--export-merl", action="store_true", help="write each fitted model as NAME.binary")
+    p.add_argument("--overwrite", action="store_true",
+                   help="refit and replace results in --out that were made with other options "
+                        "(without it such results stop the run)")
     p.add_argument("--select-lobes", action="store_true",
                    help="fit with and without each lobe and keep what the material needs (brdfcl analyze)")
     p.add_argument("--workers", type=int, default=0, help="fit on a local Dask cluster of N workers")
@@ -215,10 +244,11 @@ def main(argv=None):
     except Exception as e:  # one line unless --debug
         if debug:
             raise
+        from .cluster import WorkerError
         from .device import DeviceError
         from .merl import MerlError
         from .model import ModelError
-        known = (UsageError, MerlError, ModelError, DeviceError, OSError, ValueError)
+        known = (UsageError, MerlError, ModelError, DeviceError, OSError, ValueError, WorkerError)
         kind = "" if isinstance(e, known) else f"{type(e).__name__}: "
         print(f"brdfcl: error: {kind}{e}", file=sys.stderr)
         return 2

@@ -89,9 +89,14 @@ def pick_device(selector: str | None = None):
                 pass
         elif int(selector) < len(devs):
             return devs[int(selector)]
-        raise DeviceError(f"no OpenCL device '{selector}'; devices:\n" + "\n".join(describe()))
+        raise DeviceError(f"no OpenCL device '{selector}'; {_choices(devs)}")
     s = selector.lower()
     for p, d in devs:
         if s in p.name.lower() or s in p.version.lower() or s in d.name.lower() or s == _kind(d).lower():
             return p, d
-    raise DeviceError(f"no OpenCL device matches '{selector}'; devices:\n" + "\n".join(describe()))
+    raise DeviceError(f"no OpenCL device matches '{selector}'; {_choices(devs)}")
+
+
+def _choices(devs):
+    """The devices as one line, for errors (``brdfcl info`` lists them in full)."""
+    return "devices: " + "; ".join(f"[{i}] {d.name} on {p.version.split('  ')[0]}" for i, (p, d) in enumerate(devs))
