@@ -29,6 +29,7 @@ from .lockstep import Problem, run_lockstep
 from .merl import N_PD, N_TD
 from .model import DEFAULT_MODEL, Model
 from .peak_order import PeakOrder
+from .uncertainty import assess, bounds_hit
 
 GLOBAL_METHODS = ("lds", "mlsl", "crs2", "none")
 
@@ -79,6 +80,10 @@ class FitResult:
     history: list                    # [(seconds, stage, rmse in the fit metric)]
     bounds_hit: list
     stages: dict                     # seconds per stage (shared by the batch)
+    # issue 17 (brdfcl.uncertainty), in NAME.json's form; None / empty when not assessed
+    uncertainty: dict | None = None  # {"std_error": {name: float|None}, "correlation": {...}, "method"}
+    albedo: dict | None = None       # {"theta_i_deg": [...], "channels": [[r, g, b] per angle]}
+    flags: list = field(default_factory=list)   # one line per reason not to trust the fit
 
     def as_dict(self):
         return asdict(self)
@@ -103,6 +108,8 @@ def material_seed(seed, name):
 
 class Fitter:
     """Compiled model + cell sets for one batch of materials."""
+
+    assess_results = True   # attach standard errors, albedo and flags to each result (brdfcl.uncertainty)
 
     def __init__(self, opts: FitOptions, engine: Engine | None = None):
         self.opts = opts
@@ -309,21 +316,30 @@ class Fitter:
 
         lm_nfev = np.zeros(n, dtype=int)
         queued = []
+        t_assess = [0.0]
 
         def finish(rows, x, L, status):
             t = time.perf_counter() - t0
             rows = np.asarray(rows)
             v = self._values(x)
             err = eng.errors(cs_full, v, rows)
+            hits = [bounds_hit(m, xj) for xj in x]
+            # --- issue 17: standard errors, albedo, flags of the rows finishing now (one jtj launch)
+            judged = [{}] * len(rows)
+            if self.assess_results:
+                ta = time.perf_counter()
+                judged = assess(self, cs_full, full_data, v, rows, hits)
+                t_assess[0] += time.perf_counter() - ta
+            # ---
             for j, i in enumerate(rows):
                 history[i].append((t, "local", float(np.sqrt(L[j] / sw[i]))))
                 ok = bool(np.isfinite(L[j]) and all(np.isfinite(e[j]) for e in err.values()))
-                hit = [m.names[k] for k, xx, a, b in zip(m.free_index, x[j], m.x_lo, m.x_hi)
-                       if min(xx - a, b - xx) <= 1e-6 * max(1.0, abs(b - a))]
+                hit = hits[j]
                 res = FitResult(names[i], m.spec, o.metric, m.as_dict(v[j]), ok,
                                 status[j] if ok else f"failed: {status[j]}, non-finite error",
                                 float(L[j]), {k: float(e[j]) for k, e in err.items()}, t,
-                                int(nfev[i] + lm_nfev[i]), history[i], hit, {"global": t_global})
+                                int(nfev[i] + lm_nfev[i]), history[i], hit, {"global": t_global},
+                                **judged[j])
                 results[i] = res
                 if on_result:
                     on_result(res)
@@ -346,7 +362,9 @@ class Fitter:
             self._probe(queued, cs_full, ylo, yhi, lm_nfev, finish, log)
         t_total = time.perf_counter() - t0
         for r in results:
-            r.stages["local"] = t_total - t_global
+            r.stages["local"] = t_total - t_global - t_assess[0]
+            if self.assess_results:
+                r.stages["uncertainty"] = t_assess[0]   # issue 17: assess() of the whole batch
             r.stages["total"] = t_total
         return results
 

@@ -109,7 +109,8 @@ def remove_stale_temporaries(out_dir):
 
 
 def result_document(res, model: Model, extra=None, options=None) -> dict:
-    """What NAME.json holds: model, parameters with units and bounds, errors, timings, version and,
+    """What NAME.json holds: model, parameters with units and bounds, errors, timings, version,
+    "uncertainty", "albedo" and "flags" (brdfcl.uncertainty; null / [] when not assessed) and,
     under "options", the options that made it (recorded_options)."""
     params = {}
     for s in model.slots:
@@ -120,6 +121,11 @@ def result_document(res, model: Model, extra=None, options=None) -> dict:
            "loss": res.loss, "seconds": res.seconds, "evaluations": res.nfev, "stages": res.stages,
            "history": [{"seconds": t, "stage": s, "rmse": e} for t, s, e in res.history],
            "wavelengths_um": list(model.lambdas), "brdfcl_version": __version__}
+    # issue 17 (brdfcl.uncertainty): standard errors and correlation, directional albedo, flags
+    doc["uncertainty"] = getattr(res, "uncertainty", None)
+    doc["albedo"] = getattr(res, "albedo", None)
+    doc["flags"] = list(getattr(res, "flags", None) or [])
+    # ---
     if options is not None:
         doc["options"] = options
     doc.update(extra or {})
