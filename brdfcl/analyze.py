@@ -19,6 +19,7 @@ from __future__ import annotations
 import os
 import time
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 
 import numpy as np
 
@@ -165,8 +166,9 @@ class Analyses(list):
 
 
 def analyze(source, out=None, options: FitOptions | None = None, batch=100, log=None, figures=True,
-            on_material=None, ct_peak=True, on_skip=None) -> Analyses:
-    """Analyse every material of a database; writes analysis.csv, maps, figures and index.html.
+            on_material=None, ct_peak=True, on_skip=None, pages=False) -> Analyses:
+    """Analyse every material of a database; writes analysis.csv, maps, figures and index.html,
+    and with ``pages`` the run's report (``OUT/report/index.html``, brdfcl.view.pages).
 
     A file that cannot be read is skipped: recorded in the result's ``skipped`` and reported to
     ``on_skip(path, reason)`` (default: ``log("skipped: reason")``); the rest is analysed.  Raises
@@ -191,6 +193,8 @@ def analyze(source, out=None, options: FitOptions | None = None, batch=100, log=
         fitters["full_local"] = Fitter(replace(base.opts, ct_peak_global=False), engine=base.engine)
         fitters["full_free"] = Fitter(replace(base.opts, ct_peak=False), engine=base.engine)
         specs["full_free"] = specs["full_local"] = specs["full"]
+
+    path_of = {}
 
     def skip(item, e):
         path = getattr(item, "path", None) or str(item)
@@ -223,14 +227,30 @@ def analyze(source, out=None, options: FitOptions | None = None, batch=100, log=
             if out is not None:
                 report.write_material(out, a, figures=figures)
             results.append(a)
+            path_of[name] = path
             if on_material:
                 on_material(a)
             log(f"{name}: {a.verdict} (lobes {a.specs[a.selected]}, gradient score "
                 f"{a.gradient.mean_score:.2f}, wavelength ratio {a.wavelength.ratio:.2f})")
         if out is not None:
             report.write_index(out, results)
+    if out is not None and pages and results:
+        write_pages(out, results, path_of, figures, log)
     if results.skipped and not results:
         where = source if isinstance(source, (str, os.PathLike)) else "the given files"
         n = len(results.skipped)
         raise MerlError(f"{where}: no readable material to analyse ({n} file{'s' * (n != 1)} skipped)")
     return results
+
+
+def write_pages(out, analyses, path_of, figures=True, log=None):
+    """The run's report: each material's final fit with its verdict and analysis figures."""
+    from .view.pages import Entry, write_report      # matplotlib only when pages are written
+    fig = Path(out) / "figures"
+    entries = [Entry.from_result(a.final, path_of[a.name], verdict=a.verdict,
+                                 figures=[fig / f"{a.name}_{k}.png" for k in ("gradient", "wavelength", "components")]
+                                 if figures else []) for a in analyses]
+    index = write_report(out, entries, read_merl, title=f"brdfcl analysis of {len(entries)} materials")
+    if log:
+        log(f"report: {index}")
+    return index

@@ -103,14 +103,15 @@ def cmd_fit_all(args):
     try:
         report = fit_all(source, args.out, opts, batch=args.batch, export=args.export_merl,
                          quiet=args.quiet, log=log, client=client, select_lobes=args.select_lobes,
-                         free_peak=args.free_peak, overwrite=args.overwrite)
+                         free_peak=args.free_peak, overwrite=args.overwrite, pages=not args.no_report)
     finally:
         if client is not None:
             client.close()
     n_ok = sum(r.success for r in report.results)
     failed = [r for r in report.results if not r.success]
     print(f"fitted {n_ok} materials in {report.seconds:.1f} s ({len(report.resumed)} already done, "
-          f"{len(failed)} failed, {len(report.skipped)} skipped); results in {args.out}/summary.csv")
+          f"{len(failed)} failed, {len(report.skipped)} skipped); results in {args.out}/summary.csv"
+          + (f", report {report.pages}" if report.pages else ""))
     for r in failed:
         print(f"failed: {r.name}: {r.status}", file=sys.stderr)
     for path, why in report.skipped.items():
@@ -125,10 +126,11 @@ def cmd_analyze(args):
     def on_skip(path, why):                 # as fit-all: one line per file, also with --quiet
         print(f"skipped: {why if path in why else f'{path}: {why}'}", file=sys.stderr, flush=True)
     res = analyze(source, args.out, opts, batch=args.batch, log=log, figures=not args.no_figures,
-                  ct_peak=not args.free_peak, on_skip=on_skip)
+                  ct_peak=not args.free_peak, on_skip=on_skip, pages=not args.no_report)
     n = sum(a.verdict == "diffraction" for a in res)
     print(f"analysed {len(res)} materials: {n} with diffraction, {len(res) - n} without, "
-          f"{len(res.skipped)} skipped; see {args.out}/analysis.csv and {args.out}/index.html")
+          f"{len(res.skipped)} skipped; see {args.out}/analysis.csv and {args.out}/index.html"
+          + ("" if args.no_report else f", report {args.out}/report/index.html"))
     return 0 if res.ok else 1
 
 
@@ -180,6 +182,8 @@ def add_database_arguments(p, verb, out_help):
     add_fit_arguments(p)
     p.add_argument("--batch", type=int, default=100, help="materials per batch (all share each launch)")
     p.add_argument("--quiet", action="store_true", help="no progress bar or stage messages")
+    p.add_argument("--no-report", action="store_true",
+                   help="skip the run's report (OUT/report/: spheres, slices, comparison page)")
 
 
 def build_parser():

@@ -26,8 +26,8 @@ from .engine import Engine
 from .fit import FitOptions, Fitter, load_batch
 from .merl import MerlError, list_database, material_name, read_merl
 from .model import Model
-from .output import (export_fit, recorded_options, remove_stale_temporaries, result_document, resume_state,
-                     write_result, write_summary)
+from .output import (export_fit, read_results, recorded_options, remove_stale_temporaries, result_document,
+                     resume_state, write_result, write_summary)
 
 
 class InputOverwriteError(ValueError):
@@ -51,6 +51,7 @@ class RunReport:
     resumed: list = field(default_factory=list)       # names already finished in the output folder
     skipped: dict = field(default_factory=dict)       # path -> reason
     seconds: float = 0.0
+    pages: Path | None = None                         # the run's report page, when written
 
     @property
     def ok(self):
@@ -134,7 +135,7 @@ class Progress:
 
 def fit_all(source, out=None, options: FitOptions | None = None, batch=100, export=False,
             quiet=True, log=None, client=None, select_lobes=False, free_peak=False, overwrite=False,
-            **kw) -> RunReport:
+            pages=False, **kw) -> RunReport:
     """Fit every material of a database; write results to ``out`` if given.
 
     ``source``: folder, file or list of files.  ``options`` or keyword arguments
@@ -142,7 +143,8 @@ def fit_all(source, out=None, options: FitOptions | None = None, batch=100, expo
     over workers (see brdfcl.cluster).  ``out`` may not be, hold or be inside the input
     (InputOverwriteError).  Results already in ``out`` are reused when made with the same
     options; results of other options raise ResultsDiffer before any work, or with
-    ``overwrite`` are refitted and replaced."""
+    ``overwrite`` are refitted and replaced.  ``pages``: write the run's report
+    (``OUT/report/index.html``, brdfcl.view.pages) at the end (the CLI does unless --no-report)."""
     opts = options or FitOptions(**kw)
     log = log or (lambda s: None)
     t0 = time.perf_counter()
@@ -157,10 +159,31 @@ def fit_all(source, out=None, options: FitOptions | None = None, batch=100, expo
         out = check_output_dir(out)
         todo = _resume(paths, out, models, export, overwrite, report, log)
     if select_lobes:
-        return _fit_selected(todo, out, opts, batch, export, report, log, t0, models)
-    if client is not None:
+        _fit_selected(todo, out, opts, batch, export, report, log, t0, models)
+    elif client is not None:
         from .cluster import fit_on_cluster
-        return fit_on_cluster(client, todo, out, opts, batch, export, report, log, quiet, t0)
+        fit_on_cluster(client, todo, out, opts, batch, export, report, log, quiet, t0)
+    else:
+        _fit_here(todo, out, models, batch, export, report, log, quiet, t0)
+    if out is not None and pages:
+        report.pages = write_pages(out, paths, log)
+    return report
+
+
+def write_pages(out, paths, log=None):
+    """The run's report for the materials of ``paths`` that have a result in ``out``."""
+    from .view.pages import Entry, write_report      # matplotlib only when pages are written
+    by_name = {material_name(p): p for p in paths}
+    entries = [Entry.from_document(d, by_name[d["material"]]) for d in read_results(out)
+               if d["material"] in by_name]
+    index = write_report(out, entries, read_merl, title=f"brdfcl fits in {out}")
+    if log:
+        log(f"report: {index}")
+    return index
+
+
+def _fit_here(todo, out, models, batch, export, report, log, quiet, t0):
+    """Fit in this process, a batch at a time, writing results as they finish."""
     progress = Progress(len(todo), quiet)
     try:
         for s in range(0, len(todo), batch):
@@ -179,7 +202,6 @@ def fit_all(source, out=None, options: FitOptions | None = None, batch=100, expo
             fitter.fit(names, full, coarse, on_result=handle, log=log)
     finally:
         finish_run(progress, out, report, t0)
-    return report
 
 
 def _resume(paths, out, models, export, overwrite, report, log):

@@ -1,0 +1,75 @@
+"""The run's report: a comparison page and a page per material, checked in a real browser."""
+import re
+import shutil
+import subprocess
+import sys
+
+import pytest
+
+from brdfcl.run import fit_all, write_pages
+
+NAMES = ["synth-smooth-metal", "synth-fabric"]
+CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+PROBE = """<script>window.addEventListener('load', function () {
+  var im = document.images, bad = [];
+  for (var i = 0; i < im.length; i++) if (!(im[i].complete && im[i].naturalWidth > 0)) bad.push(im[i].getAttribute('src'));
+  document.body.setAttribute('data-images', im.length + ' ' + bad.length + ' ' + bad.join(','));
+});</script>"""
+
+
+@pytest.fixture(scope="module")
+def run(demo_db, tmp_path_factory):
+    out = tmp_path_factory.mktemp("report") / "out"
+    paths = [demo_db / f"{n}.binary" for n in NAMES]
+    rep = fit_all(paths, out, model="diffuse+diffraction+ggx", pages=True)
+    assert rep.ok and rep.pages == out / "report" / "index.html"
+    return out
+
+
+def test_pages_hold_what_a_user_reads(run):
+    index = (run / "report" / "index.html").read_text()
+    assert index.count("<tr class=") == len(NAMES)
+    for n in NAMES:
+        assert f"href='{n}.html'" in index and f"{n}/{n}-thumb.png" in index
+        page = (run / "report" / f"{n}.html").read_text()
+        for what in ("standard error", "Directional albedo", f"{n}-sphere-key.png", f"{n}-sphere-env.png",
+                     f"{n}-slices.png", f"{n}-lobes.png", "ct.alpha"):
+            assert what in page, (n, what)
+    assert "diffraction.rho" in index and "rmse_log" in index        # grouped parameters, metrics
+
+
+def test_images_are_redrawn_only_when_the_fit_changes(run, demo_db):
+    thumb = run / "report" / "synth-fabric" / "synth-fabric-thumb.png"
+    before = thumb.stat().st_mtime_ns
+    write_pages(run, [demo_db / f"{n}.binary" for n in NAMES])
+    assert thumb.stat().st_mtime_ns == before
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="no Chromium (apt-get install chromium); .ci/run installs it")
+@pytest.mark.parametrize("page", ["index"] + NAMES)
+def test_page_loads_in_chromium_without_errors(run, page):
+    src = run / "report" / f"{page}.html"
+    probe = src.with_name(f".probe-{page}.html")            # beside it, so relative links resolve
+    probe.write_text(src.read_text() + PROBE)
+    r = subprocess.run([CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--enable-logging=stderr",
+                        "--v=0", "--virtual-time-budget=5000", "--dump-dom", probe.as_uri()],
+                       capture_output=True, text=True, timeout=120)
+    probe.unlink()
+    found = re.search(r'data-images="(\d+) (\d+) ([^"]*)"', r.stdout)
+    assert found, r.stderr[-1500:]
+    n, bad, which = int(found.group(1)), int(found.group(2)), found.group(3)
+    assert n >= (len(NAMES) if page == "index" else 5) and bad == 0, which
+    console = [ln for ln in r.stderr.splitlines() if "CONSOLE" in ln]
+    assert not console, console
+
+
+def test_cli_writes_the_report_and_can_skip_it(demo_db, tmp_path):
+    d = tmp_path / "db"
+    d.mkdir()
+    (d / "synth-mirror.binary").symlink_to(demo_db / "synth-mirror.binary")
+    cli = [sys.executable, "-m", "brdfcl.cli", "fit-all", str(d), "--model", "diffuse+ggx", "--quiet"]
+    r = subprocess.run(cli + ["--out", str(tmp_path / "a")], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert "report" in r.stdout and (tmp_path / "a" / "report" / "synth-mirror.html").exists()
+    r = subprocess.run(cli + ["--out", str(tmp_path / "b"), "--no-report"], capture_output=True, text=True)
+    assert r.returncode == 0 and not (tmp_path / "b" / "report").exists()
