@@ -134,6 +134,26 @@ def cmd_analyze(args):
     return 0 if res.ok else 1
 
 
+def cmd_export(args):
+    """A finished fit (NAME.json) as a BRDF Explorer file and/or a MERL table, without refitting."""
+    from .export.fitfile import load_fit
+    if not (args.brdf_explorer or args.merl):
+        raise UsageError("give --brdf-explorer PATH and/or --merl PATH")
+    for out in (args.brdf_explorer, args.merl):
+        if out and os.path.exists(out) and os.path.samefile(out, args.fit):
+            raise UsageError(f"{out}: would overwrite the fit it exports")
+    fit = load_fit(args.fit)
+    if args.brdf_explorer:
+        from .export.brdf_explorer import write_brdf_explorer
+        print(f"wrote {write_brdf_explorer(args.brdf_explorer, fit.doc)}")
+    if args.merl:
+        from .engine import Engine
+        from .output import export_fit
+        export_fit(args.merl, Engine(fit.model, device=args.device), fit.model.as_dict(fit.values))
+        print(f"wrote {args.merl}")
+    return 0
+
+
 def cmd_params(args):
     from .model import Model
     m = Model(args.model)
@@ -226,6 +246,13 @@ def build_parser():
     add_database_arguments(p, "analyse", "output folder")
     p.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     p.set_defaults(func=cmd_analyze)
+
+    p = sub.add_parser("export", help="a finished fit (OUT/NAME.json) for a renderer: BRDF Explorer, MERL")
+    p.add_argument("fit", help="a NAME.json written by fit-all")
+    p.add_argument("--brdf-explorer", metavar="PATH", help="write a BRDF Explorer .brdf file (analytic GLSL)")
+    p.add_argument("--merl", metavar="PATH", help="write the fitted model tabulated as a MERL .binary")
+    p.add_argument("--device", default=None, help="OpenCL device for --merl (default: PoCL CPU)")
+    p.set_defaults(func=cmd_export)
 
     p = sub.add_parser("params", help="list a model's parameters, bounds and units")
     p.add_argument("model", nargs="?", default="diffuse+diffraction+ggx")

@@ -73,3 +73,17 @@ def test_cli_writes_the_report_and_can_skip_it(demo_db, tmp_path):
     assert "report" in r.stdout and (tmp_path / "a" / "report" / "synth-mirror.html").exists()
     r = subprocess.run(cli + ["--out", str(tmp_path / "b"), "--no-report"], capture_output=True, text=True)
     assert r.returncode == 0 and not (tmp_path / "b" / "report").exists()
+
+
+def test_cli_exports_a_finished_fit(run, tmp_path):
+    from brdfcl.merl import read_merl
+    fit = run / "synth-smooth-metal.json"
+    r = subprocess.run([sys.executable, "-m", "brdfcl.cli", "export", str(fit), "--brdf-explorer",
+                        str(tmp_path / "m.brdf"), "--merl", str(tmp_path / "m.binary")], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert "::begin shader" in (tmp_path / "m.brdf").read_text()
+    table = read_merl(tmp_path / "m.binary")
+    assert table.valid.sum() > 0.4 * table.valid.size
+    r = subprocess.run([sys.executable, "-m", "brdfcl.cli", "export", str(fit), "--merl", str(fit)],
+                       capture_output=True, text=True)
+    assert r.returncode == 2 and "would overwrite" in r.stderr and fit.read_text().startswith("{")
