@@ -1,4 +1,4 @@
-"""Geometry of the MERL table, computed once (SPEC section 2).
+"""Geometry of the MERL table, computed once (docs/spec.md section 2).
 
 Models are evaluated at bin centres in index space.  Each cell carries the
 solid-angle measure of its bin, integrated exactly over the bin:

@@ -1,9 +1,9 @@
-"""The gradient test of the talk (SPEC section 5), on the measured data.
+"""The gradient test of the talk (docs/spec.md section 5), on the measured data.
 
 If diffraction dominates, p ~ rho_d/pi + rho_w/lambda^4 S(f), so grad p is parallel
 to grad f = (2/lambda)(cos th cos td, -sin th sin td) over (theta_h, theta_d):
 ``dp/dtd = -tan th tan td dp/dth``.  The talk says that where Cook-Torrance dominates
-the level lines follow theta_h = const; that holds for D alone, but the SPEC's CT lobe
+the level lines follow theta_h = const; that holds for D alone, but the CT lobe (docs/spec.md section 3)
 also carries 1/(cos ti cos to), and at phi_d = 90 deg cos ti = cos to = cos th cos td
 exactly, so ``dp/dtd = 2 tan td (p - rho_d/pi)`` whatever D is (D depends on theta_h
 only).  Against a bare theta_h axis a pure GGX lobe scores ~0.7 (its tails tilt by

@@ -1,4 +1,4 @@
-"""MERL `.binary` reading and writing (SPEC section 2).
+"""MERL `.binary` reading and writing (docs/spec.md section 2).
 
 File layout: three little-endian int32 ``90 90 180``, then ``3 * 1,458,000``
 little-endian float64, all red, then all green, then all blue.  Cell index

@@ -1,4 +1,4 @@
-"""Error metrics (SPEC section 4), float64 reference.
+"""Error metrics (docs/spec.md section 4), float64 reference.
 
 Residuals per valid cell and channel, with ``x = p * cw`` where ``cw`` is
 cos(theta_i) (or 1 without the cosine factor):

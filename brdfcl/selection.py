@@ -1,4 +1,4 @@
-"""Lobe comparison (SPEC section 5, second test): which lobes does a material need?
+"""Lobe comparison (docs/spec.md section 5, second test): which lobes does a material need?
 
 Each material is fitted with the full model and with the diffraction lobe, then the
 Cook-Torrance lobe, left out.  A model's penalised error is

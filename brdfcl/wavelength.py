@@ -1,4 +1,4 @@
-"""The wavelength check (SPEC section 5): do the channels collapse when plotted against f_c?
+"""The wavelength check (docs/spec.md section 5): do the channels collapse when plotted against f_c?
 
 Diffraction depends on the wavelength only through f_c = 2 sin th cos td / lambda_c.
 In the wide-angle part of the phi_d ~ 90 deg slice, each channel's data minus its

@@ -1,4 +1,4 @@
-"""Lobe and term descriptions with their float64 references (SPEC section 3)."""
+"""Lobe and term descriptions with their float64 references (docs/spec.md section 3)."""
 from . import fresnel, ndf, psd, shadowing  # noqa: F401  (register the terms)
 from .cooktorrance import CookTorrance
 from .diffraction import LAMBDAS, Diffraction

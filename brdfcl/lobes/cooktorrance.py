@@ -1,4 +1,4 @@
-"""Cook-Torrance lobe: p = rho_s D(th) F(td) G(i, o) / (4 cos ti cos to) (SPEC section 3)."""
+"""Cook-Torrance lobe: p = rho_s D(th) F(td) G(i, o) / (4 cos ti cos to) (docs/spec.md section 3)."""
 from __future__ import annotations
 
 from .lobe import Lobe

@@ -1,6 +1,6 @@
 """Diffraction lobe: p_c = rho_w,c / lambda_c^4 F(td) S(f_c), f_c = 2 sin th cos td / lambda_c.
 
-The wavelength dependence comes only from lambda_c (SPEC section 3); f is in 1/um.
+The wavelength dependence comes only from lambda_c (docs/spec.md section 3); f is in 1/um.
 """
 from __future__ import annotations
 
