@@ -12,6 +12,7 @@ from __future__ import annotations
 import hashlib
 import logging
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import pyopencl as cl
@@ -66,7 +67,7 @@ class CellSet:
     dtype: type
     geom_host: np.ndarray
     blocks: list = field(default_factory=list)   # [(first material, count, data buffer)]
-    geom_buf: object = None
+    geom_buf: Any = None              # cl.Buffer of geom_host
 
     @property
     def n_materials(self):

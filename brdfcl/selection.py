@@ -34,4 +34,4 @@ def penalised(rmse, spec):
 def select(errors: dict, specs: dict):
     """The variant with the lowest penalised error: (key, {key: penalised error})."""
     pen = {k: penalised(errors[k], specs[k]) for k in errors}
-    return min(pen, key=pen.get), pen
+    return min(pen, key=lambda k: pen[k]), pen

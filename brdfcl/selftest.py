@@ -82,15 +82,15 @@ def check(engine) -> SelfTest:
     except Exception as e:  # a launch that fails is a failed test, reported in one line
         return SelfTest(False, np.inf, f"launch failed: {type(e).__name__}: {e}")
     worst, where = 0.0, ""
-    for e, v in enumerate(values):
+    for k, v in enumerate(values):
         p, lr, gr, jr = _reference(model, cells, meas, w, v, opt.metric, opt.cosw)
-        checks = {"predict": (P[e], p), "loss": (L3[e], lr), "grad loss": (L[e], lr), "grad": (G[e], gr),
-                  "jtj loss": (L2[e], lr), "jtj J^T W r": (JTr[e], jr),
-                  "errors": (E[f"rmse_{opt.metric}"][e] ** 2 * 3 * np.sum(w), lr)}
+        checks = {"predict": (P[k], p), "loss": (L3[k], lr), "grad loss": (L[k], lr), "grad": (G[k], gr),
+                  "jtj loss": (L2[k], lr), "jtj J^T W r": (JTr[k], jr),
+                  "errors": (E[f"rmse_{opt.metric}"][k] ** 2 * 3 * np.sum(w), lr)}
         for name, (got, want) in checks.items():
             err = _rel(got, want)
             if not err <= worst:
-                worst, where = err, f"{name} at parameter vector {e}"
+                worst, where = err, f"{name} at parameter vector {k}"
     ok = worst <= tol
     detail = f"{where}: relative error {worst:.2e} (tolerance {tol:.0e})"
     return SelfTest(ok, worst, detail)

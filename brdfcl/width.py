@@ -200,7 +200,7 @@ def choose(platform, device, real, explicit=None, log=None, probe_fn=None) -> Wi
 
 def _probe_all(platform, device, real, widths, log, probe_fn) -> dict:
     selector = device_selector(platform, device)
-    tried = []
+    tried: list[str] = []
     for w in widths:
         if log:
             log(f"checking vector width {w} ({real}) on {device.name}: build and self-test")

@@ -65,7 +65,7 @@ def load_fit(src) -> Fit:
         p = params[n]
         v = p.get("value") if isinstance(p, dict) else p
         try:
-            v = float(v)
+            v = float(v)  # type: ignore[arg-type]  # None and text are caught below
         except (TypeError, ValueError):
             raise ValueError(f"{where}: parameter {n} has no numeric value ({p!r})") from None
         if not np.isfinite(v):

@@ -57,6 +57,18 @@ class Lobe:
     amplitude: Param
     terms: tuple[Term, ...] = ()
 
+    def spec(self) -> str:
+        """The lobe's part of a model string (``ggx:smith:schlick``)."""
+        raise NotImplementedError
+
+    def reference(self, cells, value, consts):
+        """float64 value and Jacobian per channel: ([value], [{slot name: derivative}])."""
+        raise NotImplementedError
+
+    def emit(self, em: Emitter, ctx) -> None:
+        """The OpenCL C that computes what ``reference`` does."""
+        raise NotImplementedError
+
     def slots(self) -> list[Slot]:
         out = [Slot(f"{self.prefix}.{self.amplitude.name}_{CH[c]}", self.amplitude, c, self.prefix, True)
                for c in range(3)]

@@ -133,7 +133,7 @@ def _groups(params):
 
 
 def comparison_page(entries, title, rep) -> str:
-    groups = {}
+    groups: dict[str, list[str]] = {}
     for e in entries:
         for g, ks in _groups(e.params).items():
             groups.setdefault(g, ks)
