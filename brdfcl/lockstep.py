@@ -57,6 +57,8 @@ def run_lockstep(problems: list[Problem], evaluate) -> list[Outcome]:
 
     def make_objective(i):
         def f(x, grad):
+            if failure:   # stopped: nlopt (CRS2) may call again with ForcedStop still set; never block
+                raise nlopt.ForcedStop
             with cond:
                 pending[i] = (np.array(x), grad.size > 0)
                 cond.notify_all()

@@ -1,0 +1,331 @@
+"""brdfcl.lm.levenberg_marquardt on problems with known answers (numpy only, no OpenCL).
+
+The callback convention is the kernels': loss = sum r^2, JTr = J^T r, JTJ = J^T J, for the
+rows of the batch that are asked for."""
+import numpy as np
+import pytest
+from scipy.optimize import lsq_linear
+
+from brdfcl.lm import LMOptions, levenberg_marquardt
+
+FLAT = "converged (predicted decrease below ftol)"
+FTOL = "converged (ftol)"
+STUCK = "converged (no further decrease)"
+LIMIT = "iteration limit"
+
+
+def linear(A, b):
+    A, b = np.asarray(A, float), np.asarray(b, float)
+    return lambda x: (A @ x - b, A)
+
+
+def rosenbrock(x):
+    """Rosenbrock's function as least squares: minimum 0 at (1, 1)."""
+    return np.array([10 * (x[1] - x[0] ** 2), 1 - x[0]]), np.array([[-20 * x[0], 10.0], [-1.0, 0.0]])
+
+
+class Batch:
+    """jtj_x over one residual function per row; records every call."""
+
+    def __init__(self, residuals, lo=None, hi=None):
+        self.residuals = residuals
+        self.lo, self.hi = lo, hi
+        self.calls = []
+
+    def __call__(self, x, rows):
+        x = np.array(x)
+        assert x.shape == (rows.size, x.shape[1])
+        if self.lo is not None:       # trial points are always inside the box
+            assert (x >= self.lo).all() and (x <= self.hi).all()
+        self.calls.append((np.array(rows), x))
+        L, g, H = [], [], []
+        for xi, i in zip(x, rows):
+            r, J = self.residuals[i](xi)
+            L.append(r @ r)
+            g.append(J.T @ r)
+            H.append(J.T @ J)
+        return np.array(L), np.array(g), np.array(H)
+
+
+def loss_at(res, x):
+    r, _ = res(x)
+    return r @ r
+
+
+def test_linear_least_squares_is_one_gauss_newton_step():
+    """Undamped (lam0=0): the first step lands on numpy's lstsq solution and the next iteration
+    stops on the predicted decrease.  Catches a wrong step sign, a step not solving (H + lam D) d
+    = -g, or a decrement test that never fires on a solved problem."""
+    rng = np.random.default_rng(1)
+    A, b = rng.normal(size=(12, 4)), rng.normal(size=12)
+    res = linear(A, b)
+    lo, hi = np.full(4, -1e3), np.full(4, 1e3)
+    st = levenberg_marquardt(Batch([res]), np.zeros((1, 4)), lo, hi, LMOptions(lam0=0.0))
+    xs = np.linalg.lstsq(A, b, rcond=None)[0]
+    np.testing.assert_allclose(st.x[0], xs, rtol=1e-12, atol=1e-12)
+    assert st.loss[0] == pytest.approx(loss_at(res, xs), rel=1e-12)
+    assert st.status == [FLAT]
+    assert st.iters[0] == 1 and st.nfev[0] == 2
+
+
+def test_linear_least_squares_damped():
+    """Default options: stops when an undamped step would gain < ftol of the loss.  For a linear
+    problem that prediction is exact, so the loss ends within ftol (relative) of the optimum; the
+    point itself is only ~sqrt(ftol) close, a tighter ftol gets it to rounding."""
+    rng = np.random.default_rng(2)
+    A, b = rng.normal(size=(20, 5)), rng.normal(size=20)
+    res = linear(A, b)
+    xs = np.linalg.lstsq(A, b, rcond=None)[0]
+    lo, hi = np.full(5, -1e3), np.full(5, 1e3)
+    x0 = rng.normal(size=(1, 5))
+    st = levenberg_marquardt(Batch([res]), x0, lo, hi)
+    assert st.status == [FLAT]
+    assert loss_at(res, xs) <= st.loss[0] <= loss_at(res, xs) + 1e-7 * st.loss[0]
+    assert 2 <= st.iters[0] <= 10
+    st = levenberg_marquardt(Batch([res]), x0, lo, hi, LMOptions(ftol=1e-30))
+    np.testing.assert_allclose(st.x[0], xs, rtol=1e-10, atol=1e-12)
+
+
+def test_rosenbrock_converges_to_one_one():
+    lo, hi = np.full(2, -5.0), np.full(2, 5.0)
+    st = levenberg_marquardt(Batch([rosenbrock]), np.array([[-1.2, 1.0]]), lo, hi,
+                             LMOptions(max_iter=200))
+    np.testing.assert_allclose(st.x[0], [1.0, 1.0], atol=1e-8)
+    assert st.loss[0] < 1e-16
+    assert st.status[0].startswith("converged"), st.status
+    assert st.iters[0] < 100
+
+
+def projected_gradient_optimal(g, x, lo, hi, tol):
+    """KKT for a box: free components have zero gradient, bound ones point outwards."""
+    at_lo, at_hi = x <= lo, x >= hi
+    free = ~(at_lo | at_hi)
+    return (np.abs(g[free]) <= tol).all() and (g[at_lo] >= -tol).all() and (g[at_hi] <= tol).all()
+
+
+def test_bounded_linear_matches_bvls():
+    """Optimum with active bounds: same point as scipy's exact bounded solver, on the bound exactly,
+    projected-gradient optimal.  Catches an active set with the wrong sign (a bound that stalls
+    the step or one that is never let go) and steps leaving the box."""
+    rng = np.random.default_rng(3)
+    A, b = rng.normal(size=(15, 4)), 3 * rng.normal(size=15)
+    lo, hi = np.full(4, -0.3), np.full(4, 0.3)
+    ref = lsq_linear(A, b, bounds=(lo, hi), method="bvls", tol=1e-14)
+    assert ((ref.x <= lo) | (ref.x >= hi)).any()                 # the test needs an active bound
+    cb = Batch([linear(A, b)], lo, hi)
+    st = levenberg_marquardt(cb, np.zeros((1, 4)), lo, hi, LMOptions(max_iter=100, ftol=1e-30))
+    x = st.x[0]
+    np.testing.assert_allclose(x, ref.x, atol=1e-8)
+    assert ((x >= lo) & (x <= hi)).all()
+    bound = (ref.x <= lo) | (ref.x >= hi)
+    np.testing.assert_array_equal(x[bound], ref.x[bound])        # on the bound, not near it
+    g = A.T @ (A @ x - b)
+    assert projected_gradient_optimal(g, x, lo, hi, 1e-8 * np.abs(A.T @ b).max())
+    assert st.status[0].startswith("converged")
+
+
+def test_rosenbrock_with_optimum_on_upper_bound():
+    """x0 <= 0.5 moves Rosenbrock's minimum to (0.5, 0.25), where d/dx0 pushes outwards."""
+    lo, hi = np.array([-2.0, -2.0]), np.array([0.5, 2.0])
+    st = levenberg_marquardt(Batch([rosenbrock], lo, hi), np.array([[-1.2, 1.0]]), lo, hi,
+                             LMOptions(max_iter=200, ftol=1e-30))
+    x = st.x[0]
+    assert x[0] == 0.5
+    assert x[1] == pytest.approx(0.25, abs=1e-9)
+    r, J = rosenbrock(x)
+    g = J.T @ r
+    assert g[0] < -0.1                                           # held by the bound
+    assert projected_gradient_optimal(g, x, lo, hi, 1e-8)
+    assert st.status[0].startswith("converged")
+
+
+def test_start_outside_box_is_clipped():
+    lo, hi = np.zeros(2), np.ones(2)
+    cb = Batch([linear(np.eye(2), [0.5, 2.0])], lo, hi)
+    st = levenberg_marquardt(cb, np.array([[-3.0, 7.0]]), lo, hi, LMOptions(ftol=1e-30))
+    np.testing.assert_array_equal(cb.calls[0][1], [[0.0, 1.0]])
+    np.testing.assert_allclose(st.x[0], [0.5, 1.0], atol=1e-10)
+
+
+def test_batch_rows_finish_at_different_iterations():
+    """Rows with different problems in one batch: each one's answer is what it gets alone,
+    finished rows are no longer evaluated, ``on_done`` reports each row once with its final
+    point and status, and ``on_iter`` sees a running mask that only ever switches off."""
+    rng = np.random.default_rng(4)
+    A, b = rng.normal(size=(10, 2)), rng.normal(size=10)
+    xs = np.linalg.lstsq(A, b, rcond=None)[0]
+    residuals = [linear(A, b), rosenbrock, linear(A, b), rosenbrock]
+    x0 = np.array([xs, [-1.2, 1.0], [3.0, -2.0], [0.0, 0.0]])
+    lo, hi = np.full(2, -5.0), np.full(2, 5.0)
+    opts = LMOptions(max_iter=200, ftol=1e-30)
+    done, masks = {}, []
+
+    def on_done(rows, x, L, status):
+        assert len(rows)
+        for i in rows:
+            assert i not in done, f"row {i} reported twice"
+            assert status[i] != "running"
+            done[int(i)] = (x[i].copy(), float(L[i]), status[i])
+
+    def on_iter(it, x, L, running):
+        assert it == len(masks)
+        masks.append(running.copy())
+        assert not running[list(done)].any()                     # reported rows are not running
+
+    cb = Batch(residuals, lo, hi)
+    st = levenberg_marquardt(cb, x0, lo, hi, opts, on_done=on_done, on_iter=on_iter)
+
+    # every row reported once, with what the result says
+    assert sorted(done) == [0, 1, 2, 3]
+    for i, (x, L, s) in done.items():
+        np.testing.assert_array_equal(x, st.x[i])
+        assert L == st.loss[i] and s == st.status[i]
+    # the answers
+    np.testing.assert_allclose(st.x[[0, 2]], [xs, xs], atol=1e-8)
+    np.testing.assert_allclose(st.x[[1, 3]], np.ones((2, 2)), atol=1e-8)
+    assert st.status[0] == FLAT and st.iters[0] == 0            # started at its optimum
+    assert len(set(st.iters.tolist())) >= 3                      # rows finished at different times
+    # each row matches the same row run alone (rows do not interact)
+    for i in range(4):
+        alone = levenberg_marquardt(Batch([residuals[i]]), x0[i:i + 1], lo, hi, opts)
+        np.testing.assert_array_equal(alone.x[0], st.x[i])
+        assert alone.iters[0] == st.iters[i] and alone.status[0] == st.status[i]
+    # the mask only switches off, and a row is evaluated only while it runs
+    M = np.array(masks)
+    assert (M[1:] <= M[:-1]).all()
+    assert len(cb.calls) == 1 + len(masks)                       # one launch per iteration
+    for it, (rows, _) in enumerate(cb.calls[1:]):
+        before = set(np.flatnonzero(M[it - 1])) if it else {0, 1, 2, 3}
+        assert set(np.flatnonzero(M[it])) <= set(rows.tolist()) <= before
+    evaluated = np.zeros(4, int)
+    for rows, _ in cb.calls[1:]:
+        evaluated[rows] += 1
+    np.testing.assert_array_equal(evaluated, st.iters)
+    np.testing.assert_array_equal(st.nfev, st.iters + 1)
+
+
+def test_nonfinite_trial_loss_is_rejected():
+    """The callback returns NaN beyond x = 1; the minimum of (x - 2)^2 is out there, so LM must
+    back off to finite points and never accept NaN."""
+    def res(x):
+        if x[0] > 1.0:
+            return np.array([np.nan]), np.array([[np.nan]])
+        return np.array([x[0] - 2.0]), np.array([[1.0]])
+    lo, hi = np.array([-10.0]), np.array([10.0])
+    cb = Batch([res])
+    st = levenberg_marquardt(cb, np.array([[0.0]]), lo, hi)
+    assert any(c[1][0, 0] > 1.0 for c in cb.calls)             # NaN was returned, and refused
+    assert np.isfinite(st.x).all() and np.isfinite(st.loss).all()
+    assert 0.999 < st.x[0, 0] <= 1.0
+    assert st.loss[0] == loss_at(res, st.x[0])
+    assert st.status[0] != "running"
+
+
+def test_nonfinite_gradient_is_rejected():
+    """Finite loss but NaN J^T J beyond x = 1: still a rejected step."""
+    def res(x):
+        return np.array([x[0] - 2.0]), np.array([[1.0 if x[0] <= 1.0 else np.nan]])
+    st = levenberg_marquardt(Batch([res]), np.array([[0.0]]), np.array([-10.0]), np.array([10.0]))
+    assert np.isfinite(st.x).all() and st.x[0, 0] <= 1.0
+
+
+def test_nonfinite_start_gives_inf_not_nan():
+    """A row whose start evaluates to NaN ends with loss inf (never NaN) and does not disturb
+    the other rows."""
+    bad = lambda x: (np.array([np.nan]), np.array([[np.nan]]))   # noqa: E731
+    good = linear([[1.0]], [0.25])
+    lo, hi = np.array([-1.0]), np.array([1.0])
+    st = levenberg_marquardt(Batch([bad, good]), np.array([[0.5], [0.5]]), lo, hi)
+    assert st.loss[0] == np.inf and not np.isnan(st.x).any()
+    assert st.status[0] != "running"
+    assert st.x[1, 0] == pytest.approx(0.25, abs=1e-10)
+
+
+def test_stop_on_small_accepted_decrements():
+    """Heavy damping makes every accepted step lower the loss by < ftol relative: three in a row
+    stop with 'converged (ftol)'.  Catches a counter that is not counted or not reset."""
+    A, b = np.eye(2), np.array([1.0, 2.0])
+    lo, hi = np.full(2, -10.0), np.full(2, 10.0)
+    st = levenberg_marquardt(Batch([linear(A, b)]), np.zeros((1, 2)), lo, hi, LMOptions(lam0=1e9))
+    assert st.status == [FTOL]
+    assert st.iters[0] == 3
+    # a tolerance below the decrements does not stop it there
+    st = levenberg_marquardt(Batch([linear(A, b)]), np.zeros((1, 2)), lo, hi,
+                             LMOptions(lam0=1e9, ftol=1e-12))
+    assert st.iters[0] > 3 and st.status[0] != FTOL
+
+
+def uphill():
+    """Reports the gradient with the wrong sign: every step goes uphill and is rejected."""
+    def cb(x, rows):
+        r = x - 2.0
+        return (r ** 2).sum(1), -r, np.tile(np.eye(x.shape[1]), (len(rows), 1, 1))
+    return cb
+
+
+@pytest.mark.parametrize("max_reject", [16, 5])
+def test_stop_on_rejected_step_limit(max_reject):
+    x0 = np.zeros((1, 2))
+    st = levenberg_marquardt(uphill(), x0, np.full(2, -10.0), np.full(2, 10.0),
+                             LMOptions(max_reject=max_reject))
+    assert st.status == [STUCK]
+    assert st.iters[0] == max_reject
+    np.testing.assert_array_equal(st.x, x0)                      # never moved
+    assert st.loss[0] == 8.0
+
+
+def test_stop_on_damping_limit():
+    """lam 1 -> 4 -> 16 -> 64 -> 256 > lam_max = 100: stops after the fourth rejection."""
+    st = levenberg_marquardt(uphill(), np.zeros((1, 2)), np.full(2, -10.0), np.full(2, 10.0),
+                             LMOptions(lam0=1.0, lam_max=100.0))
+    assert st.status == [STUCK] and st.iters[0] == 4
+
+
+def test_iteration_limit():
+    reported = []
+    st = levenberg_marquardt(Batch([rosenbrock]), np.array([[-1.2, 1.0]]), np.full(2, -5.0),
+                             np.full(2, 5.0), LMOptions(max_iter=3),
+                             on_done=lambda rows, x, L, s: reported.append((list(rows), s[rows[0]])))
+    assert st.status == [LIMIT]
+    assert st.iters[0] == 3 and st.nfev[0] == 4
+    assert reported == [([0], LIMIT)]
+
+
+def scripted(losses):
+    """A one-row callback returning the given losses in order (the first for the start), with
+    g = 1 and H = 1 so that the predicted decrease never stops it."""
+    it = iter(losses)
+
+    def cb(x, rows):
+        assert rows.tolist() == [0]
+        return np.array([next(it)]), np.ones((1, 1)), np.ones((1, 1, 1))
+    return cb
+
+
+def run_scripted(losses, **kw):
+    return levenberg_marquardt(scripted(losses), np.zeros((1, 1)), np.array([-1e9]), np.array([1e9]),
+                               LMOptions(**kw))
+
+
+def test_small_decrements_must_be_consecutive():
+    """small, small, big, small, small, small: stops at the sixth step, not the fourth."""
+    st = run_scripted([1.0, 1 - 1e-9, 1 - 2e-9, 0.5, 0.5 - 1e-9, 0.5 - 2e-9, 0.5 - 3e-9, 0.1])
+    assert st.status == [FTOL] and st.iters[0] == 6 and st.loss[0] == 0.5 - 3e-9
+
+
+def test_rejections_must_be_consecutive():
+    """max_reject=2 with reject, accept, reject, accept, reject, reject: stops at the sixth."""
+    st = run_scripted([1.0, 2.0, 0.9, 2.0, 0.8, 2.0, 2.0, 0.1], max_reject=2)
+    assert st.status == [STUCK] and st.iters[0] == 6 and st.loss[0] == 0.8
+
+
+def test_equal_loss_is_not_accepted():
+    """Only a lower loss is accepted: a trial that ties is a rejection and x stays put."""
+    st = run_scripted([1.0] * 20, max_reject=5)
+    assert st.status == [STUCK] and st.iters[0] == 5
+    assert st.x[0, 0] == 0.0
+
+
+def test_negative_infinite_loss_is_rejected():
+    st = run_scripted([1.0, -np.inf, np.nan, 0.5, -np.inf, np.inf, 0.25] + [0.25] * 20, max_reject=4)
+    assert st.loss[0] == 0.25 and np.isfinite(st.x).all()
