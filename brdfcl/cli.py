@@ -2,10 +2,15 @@
 from __future__ import annotations
 
 import argparse
+import functools
+import inspect
 import os
 import sys
+from dataclasses import fields, replace
 
 from . import __version__
+
+NO_CUTOFF_DEG = 90.0    # --cutoff at or beyond the horizon: no cutoff (FitOptions.cutoff_deg None)
 
 
 class UsageError(Exception):
@@ -67,18 +72,23 @@ def _fixed(items):
 
 
 def fit_options(args):
+    """FitOptions from the fit flags the user gave; every other field keeps FitOptions' default.
+
+    The flags of `add_fit_arguments` are absent from ``args`` unless given (default SUPPRESS), and
+    most are stored under their FitOptions field's name; the others are converted here."""
     from .fit import FitOptions
-    from .lm import LMOptions
     from .model import Model
-    fixed = _fixed(args.fix)
-    Model(args.model, fixed=fixed)                  # clear error for a bad model before any work
-    return FitOptions(model=args.model, metric=args.metric, cosw=not args.no_cos,
-                      cutoff_deg=None if args.cutoff >= 90 else args.cutoff,
-                      real="double" if args.double else "float", device=args.device,
-                      global_method=args.global_method, n_candidates=args.candidates,
-                      n_starts=args.starts, seed=args.seed, fixed=fixed, ct_peak=args.ct_peak,
-                      vector_width=args.vector_width,
-                      lm=LMOptions(max_iter=args.max_iter))
+    given = vars(args)
+    kw = {f.name: given[f.name] for f in fields(FitOptions) if f.name in given}
+    if "cutoff" in given:
+        kw["cutoff_deg"] = None if args.cutoff >= NO_CUTOFF_DEG else args.cutoff
+    if "fix" in given:
+        kw["fixed"] = _fixed(args.fix)
+    if "max_iter" in given:
+        kw["lm"] = replace(FitOptions().lm, max_iter=args.max_iter)
+    opts = FitOptions(**kw)
+    Model(opts.model, fixed=opts.fixed)             # clear error for a bad model before any work
+    return opts
 
 
 def _database_job(args):
@@ -114,7 +124,7 @@ def cmd_fit_all(args):
           + (f", report {report.pages}" if report.pages else ""))
     for r in failed:
         print(f"failed: {r.name}: {r.status}", file=sys.stderr)
-    for path, why in report.skipped.items():
+    for why in report.skipped.values():
         print(f"skipped: {why}", file=sys.stderr)
     return 0 if report.ok else 1
 
@@ -167,46 +177,69 @@ def cmd_params(args):
     return 0
 
 
+def _default(func, name):
+    """The default of one of func's parameters: the CLI shows and uses it without repeating it."""
+    return inspect.signature(func).parameters[name].default
+
+
 def add_fit_arguments(p):
-    from .fit import GLOBAL_METHODS
+    """The flags that make FitOptions (see `fit_options`).  Their defaults are FitOptions' and
+    LMOptions' own: a flag that is not given is absent from the parsed arguments, and its help
+    shows the field's default."""
+    from .fit import GLOBAL_METHODS, FitOptions
     from .metrics import METRICS
-    from .model import DEFAULT_MODEL
-    p.add_argument("--model", default=DEFAULT_MODEL, help=f"model string (default {DEFAULT_MODEL})")
-    p.add_argument("--metric", default="log", choices=METRICS, help="fit metric (default log)")
-    p.add_argument("--no-cos", action="store_true", help="no cos(theta_i) factor in the residual")
-    p.add_argument("--cutoff", type=float, default=80.0,
-                   help="leave out cells with theta_i or theta_o beyond this angle (degrees, default 80)")
-    p.add_argument("--double", action="store_true", help="float64 kernels and data (default float32)")
-    p.add_argument("--device", default=None, help="OpenCL device index or name (default: PoCL CPU)")
-    p.add_argument("--vector-width", type=int, default=None, choices=(1, 2, 4, 8, 16),
-                   help="cells per work-item on a CPU (default: the widest that passes the self-test; "
-                        "also BRDFCL_VECTOR_WIDTH)")
-    p.add_argument("--global", dest="global_method", default="lds", choices=GLOBAL_METHODS,
-                   help="global search (default lds: Sobol candidates + nlopt L-BFGS starts)")
-    p.add_argument("--candidates", type=int, default=256, help="Sobol candidates per material (lds)")
-    p.add_argument("--starts", type=int, default=4, help="local searches per material (lds)")
-    p.add_argument("--max-iter", type=int, default=60, help="Levenberg-Marquardt iterations (default 60)")
-    p.add_argument("--fix", action="append", metavar="NAME=VALUE", help="hold a parameter fixed")
-    p.add_argument("--ct-peak", action="store_true",
-                   help="Cook-Torrance carries the specular peak: the diffraction lobe may not exceed it "
-                        "there (always on in analyze and --select-lobes unless --free-peak)")
+    d = FitOptions()
+    cutoff = "none" if d.cutoff_deg is None else f"{d.cutoff_deg:g}"
+    real = {"float": "float32", "double": "float64"}.get(d.real, d.real)
+    opt = functools.partial(p.add_argument, default=argparse.SUPPRESS)    # absent unless given
+    opt("--model", help=f"model string (default {d.model})")
+    opt("--metric", choices=METRICS, help=f"fit metric (default {d.metric})")
+    opt("--no-cos", dest="cosw", action="store_false",
+        help="no cos(theta_i) factor in the residual")
+    opt("--cutoff", type=float,
+        help="leave out cells with theta_i or theta_o beyond this angle "
+             f"(degrees, {NO_CUTOFF_DEG:g} or more: none; default {cutoff})")
+    opt("--double", dest="real", action="store_const", const="double",
+        help=f"float64 kernels and data (default {real})")
+    opt("--device", help="OpenCL device index or name (default: PoCL CPU)")
+    opt("--vector-width", type=int, choices=(1, 2, 4, 8, 16),
+        help="cells per work-item on a CPU (default: the widest that passes the self-test; "
+             "also BRDFCL_VECTOR_WIDTH)")
+    opt("--global", dest="global_method", choices=GLOBAL_METHODS,
+        help=f"global search (default {d.global_method}); lds: Sobol candidates + nlopt L-BFGS starts")
+    opt("--candidates", dest="n_candidates", metavar="CANDIDATES", type=int,
+        help=f"Sobol candidates per material (lds; default {d.n_candidates})")
+    opt("--starts", dest="n_starts", metavar="STARTS", type=int,
+        help=f"local searches per material (lds; default {d.n_starts})")
+    opt("--max-iter", type=int, help=f"Levenberg-Marquardt iterations (default {d.lm.max_iter})")
+    opt("--fix", action="append", metavar="NAME=VALUE", help="hold a parameter fixed")
+    opt("--ct-peak", action="store_true",
+        help="Cook-Torrance carries the specular peak: the diffraction lobe may not exceed it "
+             "there (always on in analyze and --select-lobes unless --free-peak)")
     p.add_argument("--free-peak", action="store_true", help="analyze, --select-lobes: no peak constraint")
-    p.add_argument("--seed", type=int, default=0)
+    opt("--seed", type=int, help=f"seed of the global search (default {d.seed})")
 
 
-def add_database_arguments(p, verb, out_help):
-    """What fit-all and analyze share: the database (or --demo), the output, the fit options."""
+def add_database_arguments(p, verb, out_help, job):
+    """What fit-all and analyze share: the database (or --demo), the output, the fit options.
+    ``job``: the function the command runs (brdfcl.run.fit_all, brdfcl.analyze.analyze), whose
+    defaults the other flags take."""
     p.add_argument("database", nargs="?", default=None, help="folder of MERL .binary files")
     p.add_argument("--demo", action="store_true", help=f"{verb} the embedded demo database")
     p.add_argument("--out", required=True, help=out_help)
     add_fit_arguments(p)
-    p.add_argument("--batch", type=int, default=100, help="materials per batch (all share each launch)")
+    p.add_argument("--batch", type=int, default=_default(job, "batch"),
+                   help="materials per batch (all share each launch; default %(default)s)")
     p.add_argument("--quiet", action="store_true", help="no progress bar or stage messages")
     p.add_argument("--no-report", action="store_true",
                    help="skip the run's report (OUT/report/: spheres, slices, comparison page)")
 
 
 def build_parser():
+    from .analyze import analyze
+    from .fit import FitOptions
+    from .run import fit_all
+    from .synth import write_synth
     ap = argparse.ArgumentParser(prog="brdfcl", description=__doc__)
     ap.add_argument("--version", action="version", version=f"brdfcl {__version__}")
     ap.add_argument("--debug", action="store_true", help="show tracebacks")
@@ -223,15 +256,18 @@ def build_parser():
 
     p = sub.add_parser("synth", help="write the synthetic demo database (MERL format)")
     p.add_argument("out", help="output folder")
-    p.add_argument("--noise", type=float, default=0.0, help="relative Gaussian noise (default 0)")
-    p.add_argument("--missing", type=float, default=0.0, help="fraction of cells marked missing")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--noise", type=float, default=_default(write_synth, "noise"),
+                   help="relative Gaussian noise (default %(default)s)")
+    p.add_argument("--missing", type=float, default=_default(write_synth, "missing"),
+                   help="fraction of cells marked missing (default %(default)s)")
+    p.add_argument("--seed", type=int, default=_default(write_synth, "seed"),
+                   help="seed of the noise and missing cells (default %(default)s)")
     p.add_argument("--materials", default=None, help="comma-separated subset of the demo materials")
     p.set_defaults(func=cmd_synth)
 
     p = sub.add_parser("fit-all", help="fit every .binary of a folder (or --demo)")
     add_database_arguments(p, "fit", "output folder, outside the input data (resumes results "
-                                      "made there with the same options)")
+                                      "made there with the same options)", fit_all)
     p.add_argument("--export-merl", action="store_true", help="write each fitted model as NAME.binary")
     p.add_argument("--overwrite", action="store_true",
                    help="refit and replace results in --out that were made with other options "
@@ -243,7 +279,7 @@ def build_parser():
     p.set_defaults(func=cmd_fit_all)
 
     p = sub.add_parser("analyze", help="gradient test, wavelength check and lobe selection per material")
-    add_database_arguments(p, "analyse", "output folder")
+    add_database_arguments(p, "analyse", "output folder", analyze)
     p.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     p.set_defaults(func=cmd_analyze)
 
@@ -255,7 +291,7 @@ def build_parser():
     p.set_defaults(func=cmd_export)
 
     p = sub.add_parser("params", help="list a model's parameters, bounds and units")
-    p.add_argument("model", nargs="?", default="diffuse+diffraction+ggx")
+    p.add_argument("model", nargs="?", default=FitOptions().model, help="model string (default %(default)s)")
     p.set_defaults(func=cmd_params)
     return ap
 

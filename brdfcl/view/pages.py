@@ -240,7 +240,14 @@ def _q(path):
 
 
 def _write(path, text):
+    """Atomically, and not at all when the page is unchanged (a resumed run touches nothing)."""
+    text += "\n"
+    try:
+        if path.read_text() == text:
+            return
+    except OSError:
+        pass
     with writing(path):
         tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
-        tmp.write_text(text + "\n")
+        tmp.write_text(text)
         os.replace(tmp, path)
