@@ -67,12 +67,16 @@ def run_lockstep(problems: list[Problem], evaluate) -> list[Outcome]:
                 val, g = results.pop(i)
             if val is None:
                 raise nlopt.ForcedStop
-            nfev[i] += 1
-            if np.isfinite(val) and val < best[i][0]:
-                best[i] = (float(val), np.array(x))
-            if grad.size:
-                grad[:] = g if np.isfinite(g).all() else 0.0
-            return float(val) if np.isfinite(val) else BIG
+            try:
+                nfev[i] += 1
+                if np.isfinite(val) and val < best[i][0]:
+                    best[i] = (float(val), np.array(x))
+                if grad.size:
+                    grad[:] = g if np.isfinite(g).all() else 0.0
+                return float(val) if np.isfinite(val) else BIG
+            except Exception as e:  # a malformed answer: stop every optimiser and re-raise it after
+                failure.append(e)
+                raise nlopt.ForcedStop from None
         return f
 
     def worker(i):

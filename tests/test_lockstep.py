@@ -265,6 +265,20 @@ def test_raising_evaluate_stops_everyone_and_reraises(at_call):
     assert threading.active_count() == before
 
 
+def test_malformed_evaluation_stops_everyone_and_reraises():
+    """An answer of the wrong shape fails inside an optimiser's objective; with CRS2 (which keeps
+    calling after a stop) that used to leave the lock held and hang."""
+    fgs, _, x0s = case(3, 5)
+
+    def evaluate(xs, need, ids):
+        f, g = Evaluate(fgs)(xs, need, ids)
+        return np.stack([f, f], axis=1), g                     # (n, 2) instead of (n,)
+    problems = [Problem(make_opt(a), x0, i) for i, (a, x0) in
+                enumerate(zip(["GN_CRS2_LM", "LD_LBFGS", "LN_BOBYQA"], x0s))]
+    with pytest.raises(ValueError):
+        within(10, run_lockstep, problems, evaluate)
+
+
 def test_many_problems_finish():
     """200 problems in one run: all at their own optimum, the first batch holds all 200."""
     n = 200
