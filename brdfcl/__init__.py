@@ -1,6 +1,5 @@
 """brdfcl: fit diffuse + diffraction + Cook-Torrance to measured BRDF databases with OpenCL."""
-__version__ = "0.1.0"
-
+from ._version import __version__  # noqa: E402
 from .merl import MerlError, MerlTable, read_database, read_merl, write_merl  # noqa: E402
 from .model import DEFAULT_MODEL, Model, ModelError  # noqa: E402
 

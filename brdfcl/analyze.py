@@ -1,4 +1,4 @@
-"""Which physical effect makes which part of each measured BRDF (SPEC section 5).
+"""Which physical effect makes which part of each measured BRDF (docs/spec.md section 5).
 
 For every material: the gradient test (brdfcl.gradient_test), the wavelength check
 (brdfcl.wavelength), and the lobe comparison (brdfcl.selection: fits with and without
@@ -23,14 +23,15 @@ from pathlib import Path
 
 import numpy as np
 
+from . import report
 from .fit import FitOptions, Fitter, load_batch
 from .geometry import bin_centres, directions
 from .gradient_test import GradientMap, gradient_test, phi90_slice
+from .inputs import FileReader, check_output_not_input, database_paths
 from .lobes.cells import Cells
 from .merl import MerlError, read_merl
 from .model import Model
 from .peak_order import peak_cell
-from .run import FileReader, check_output_not_input, database_paths
 from .selection import select, variants
 from .wavelength import WavelengthCheck, wavelength_check
 
@@ -93,16 +94,6 @@ def slice_cells(phi_bins=slice(80, 100)):
     return Cells.from_directions(wi[ok], wo[ok]), ok, TH.shape
 
 
-def only_lobes(model, params, keep):
-    """Value vector of a fit with every amplitude outside the lobes ``keep`` set to zero."""
-    v = np.array([params[n] for n in model.names])
-    if keep is not None:
-        for i, s in enumerate(model.slots):
-            if s.lobe not in keep and s.amplitude:
-                v[i] = 0.0
-    return v
-
-
 def lobe_images(spec, params):
     """(3, 90, 90) images of each lobe group at phi_d ~ 90: diffuse+diffraction, CT, full."""
     cells, ok, shape = slice_cells()
@@ -111,7 +102,7 @@ def lobe_images(spec, params):
     groups = {"diffuse_diffraction": ("diffuse", "diffraction"), "ct": ("ct",), "full": None}
     for key, keep in groups.items():
         p = np.full((3, ok.size), np.nan)
-        p[:, ok] = model.reference(cells, only_lobes(model, params, keep), jacobian=False)
+        p[:, ok] = model.reference(cells, model.only_lobes(params, keep), jacobian=False)
         with np.errstate(invalid="ignore", divide="ignore"):
             n = np.isfinite(p.reshape(3, *shape)).sum(-1)
             img = np.nansum(p.reshape(3, *shape), axis=-1) / np.maximum(n, 1)
@@ -125,8 +116,8 @@ def peak_share(spec, params):
     if not model.has("diffraction"):
         return 0.0
     cells = peak_cell()
-    total = model.reference(cells, only_lobes(model, params, None), jacobian=False).sum()
-    part = model.reference(cells, only_lobes(model, params, ("diffraction",)), jacobian=False).sum()
+    total = model.reference(cells, model.only_lobes(params, None), jacobian=False).sum()
+    part = model.reference(cells, model.only_lobes(params, ("diffraction",)), jacobian=False).sum()
     return float(part / max(total, 1e-300))
 
 
@@ -173,8 +164,8 @@ def analyze(source, out=None, options: FitOptions | None = None, batch=100, log=
     A file that cannot be read is skipped: recorded in the result's ``skipped`` and reported to
     ``on_skip(path, reason)`` (default: ``log("skipped: reason")``); the rest is analysed.  Raises
     MerlError when files were given but none could be read; before any work, OSError when ``out``
-    cannot be written and brdfcl.run.InputOverwriteError when it is, holds or is inside the input."""
-    from . import report
+    cannot be written and brdfcl.inputs.InputOverwriteError (also brdfcl.run's) when it is, holds or
+    is inside the input."""
     opts = options or FitOptions()
     log = log or (lambda s: None)
     on_skip = on_skip or (lambda path, why: log(f"skipped: {why}"))
@@ -245,7 +236,8 @@ def analyze(source, out=None, options: FitOptions | None = None, batch=100, log=
 
 def write_pages(out, analyses, path_of, figures=True, log=None):
     """The run's report: each material's final fit with its verdict and analysis figures."""
-    from .view.pages import Entry, write_report      # matplotlib only when pages are written
+    # local: brdfcl.view loads matplotlib, which an analysis without pages never needs
+    from .view.pages import Entry, write_report
     fig = Path(out) / "figures"
     entries = [Entry.from_result(a.final, path_of[a.name], verdict=a.verdict,
                                  figures=[fig / f"{a.name}_{k}.png" for k in ("gradient", "wavelength", "components")]

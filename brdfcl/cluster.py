@@ -13,8 +13,11 @@ A failure inside a task (an OpenCL error, a device that is not there) comes back
 as a value, not as a task exception, so that neither Dask's logs nor its retries
 repeat it: the client stops the run with one line naming the chunk's materials,
 the worker and the cause (WorkerError), whose ``__cause__`` holds the worker's
-traceback (shown by ``brdfcl --debug``).  Importing this module imports neither
-Dask nor OpenCL.
+traceback (shown by ``brdfcl --debug``).  Importing this module does not import Dask
+(only the functions that need it do), so it loads where Dask is not installed.
+
+brdfcl.run calls ``fit_on_cluster``; this module takes what it shares with an in-process run
+from below it (brdfcl.inputs, brdfcl.results), never from brdfcl.run.
 """
 from __future__ import annotations
 
@@ -22,6 +25,11 @@ import logging
 import math
 import os
 import traceback
+
+from . import fit
+from .inputs import FileReader
+from .merl import material_name
+from .results import Models, Progress, finish_run, result_writer
 
 
 class WorkerError(RuntimeError):
@@ -39,7 +47,8 @@ def describe_error(e) -> str:
     """``Type: message`` on one line; pyopencl errors by their routine and error name, not their repr."""
     text = str(e)                   # pyopencl.Error: "create_buffer failed: INVALID_BUFFER_SIZE"
     record = getattr(e, "what", None)                # a pyopencl.Error holds an _ErrorRecord
-    if (not text.strip() or "_ErrorRecord" in text) and callable(getattr(record, "routine", None)):
+    if (not text.strip() or "_ErrorRecord" in text) and record is not None \
+            and callable(getattr(record, "routine", None)):
         text = f"{record.routine()} failed with code {record.code()}"
     lines = [ln.strip() for ln in text.splitlines() if ln.strip()]
     first = lines[0] if len(lines) < 2 else lines[0].rstrip(" :;,") + " [...]"
@@ -50,7 +59,6 @@ def describe_error(e) -> str:
 
 
 def chunk_label(paths, most=3) -> str:
-    from .merl import material_name
     names = [material_name(p) for p in paths]
     more = f" and {len(names) - most} more" if len(names) > most else ""
     return ", ".join(names[:most]) + more
@@ -61,7 +69,7 @@ def make_client(scheduler=None, workers=0, log_level=logging.CRITICAL):
     Dask logging (and the client's) shows only records of ``log_level`` and above: a failed chunk is
     reported once, by brdfcl, not by every process that saw it.  A script that starts a local cluster
     must do it under ``if __name__ == "__main__":`` (its workers are started by importing it again)."""
-    try:
+    try:                                    # local: Dask is optional (the "cluster" extra)
         from dask.distributed import Client, LocalCluster
     except ImportError:
         raise ImportError("the cluster mode needs Dask: pip install -e '.[cluster]'") from None
@@ -86,17 +94,15 @@ def fit_chunk(paths, opts):
     """Task body: fit a chunk on this worker; returns (results, {path: reason skipped}, failure),
     failure None or (one line: worker and cause, the worker's traceback as text)."""
     try:
-        from .fit import Fitter, load_batch
-        from .run import FileReader
         key = (repr(opts), os.environ.get("BRDFCL_DEVICE"))
         fitter = _WORKER_FITTERS.get(key)
-        if fitter is None:
-            fitter = _WORKER_FITTERS[key] = Fitter(opts)       # one context and program per worker
+        if fitter is None:                  # fit.Fitter looked up now: tests put a failing one there
+            fitter = _WORKER_FITTERS[key] = fit.Fitter(opts)       # one context and program per worker
         skipped = {}
 
         def on_error(item, e):
             skipped[str(item)] = str(e)
-        names, full, coarse = load_batch([FileReader(p) for p in paths], fitter, on_error)
+        names, full, coarse = fit.load_batch([FileReader(p) for p in paths], fitter, on_error)
         results = fitter.fit(names, full, coarse) if names else []
         return results, skipped, None
     except Exception as e:          # pyopencl errors do not even pickle: send text
@@ -104,7 +110,7 @@ def fit_chunk(paths, opts):
 
 
 def _worker_name():
-    try:
+    try:                                    # local: Dask is optional; on a worker it is there
         from distributed import get_worker
         return get_worker().address
     except (ImportError, ValueError):
@@ -120,9 +126,9 @@ def _cancel(client, futures):
 
 def fit_on_cluster(client, paths, out, opts, batch, export, report, log, quiet, t0):
     """Spread ``paths`` over the cluster's workers; fill ``report`` as chunks complete."""
+    # local: Dask is optional (the "cluster" extra); a caller with a client has it
     from dask.distributed import as_completed
 
-    from .run import Models, Progress, finish_run, result_writer
     n_workers = max(1, len(client.scheduler_info().get("workers", {})))
     size = max(1, min(batch, math.ceil(len(paths) / (2 * n_workers))))
     chunks = [paths[i:i + size] for i in range(0, len(paths), size)]
@@ -144,7 +150,7 @@ def fit_on_cluster(client, paths, out, opts, batch, export, report, log, quiet, 
                 _cancel(client, futures)
                 raise WorkerError(f"{what} failed {failure[0]}") from RemoteTraceback(failure[1])
             report.skipped.update(skipped)
-            for p, why in skipped.items():
+            for why in skipped.values():
                 log(f"skipped: {why}")
             for r in results:
                 writer(r)

@@ -131,6 +131,16 @@ class Model:
     def as_dict(self, values):
         return {n: float(v) for n, v in zip(self.names, values)}
 
+    def only_lobes(self, params, keep):
+        """Value vector of ``params`` (by name) with every amplitude outside the lobes ``keep``
+        (their prefixes; None keeps all) set to zero: one lobe's part of a fit."""
+        v = np.array([params[n] for n in self.names])
+        if keep is not None:
+            for i, s in enumerate(self.slots):
+                if s.lobe not in keep and s.amplitude:
+                    v[i] = 0.0
+        return v
+
     # --- host constants --------------------------------------------------------------------------
     def consts(self, values):
         """Parameter-only constants (normalisations) for each value vector: (..., n_consts)."""

@@ -11,15 +11,14 @@ import numpy as np
 
 from . import figures_style as FS
 from .geometry import bin_centres
+from .inputs import check_output_dir
 from .lobes.diffraction import LAMBDAS
-from .output import atomic_write_text
+from .output import atomic_write_text, remove_stale_temporaries
 
 
 def prepare(out):
     """Create ``out`` and ``out/figures``: a one-line OSError naming the folder if either cannot be
-    written (brdfcl.run.check_output_dir); temporaries of a run killed mid-write are removed."""
-    from .output import remove_stale_temporaries
-    from .run import check_output_dir
+    written (brdfcl.inputs.check_output_dir); temporaries of a run killed mid-write are removed."""
     for d in (check_output_dir(out), check_output_dir(Path(out) / "figures")):
         remove_stale_temporaries(d)
 
@@ -316,7 +315,8 @@ def write_index(out, analyses):
          "<p>Gradient test: share of the decidable wide-angle cells whose data gradient at phi_d ~ 90 deg "
          "is closer to the diffraction prediction (parallel to grad f) than to the Cook-Torrance one "
          "(theta_h = const tilted by 1/(cos ti cos to) and the Fresnel slope of the ridge). "
-         "Wavelength check: spread of the channels against f_c over their spread without the wavelength (&lt; 1 collapses; &ge; 1.5 contradicts). Lobe "
+         "Wavelength check: spread of the channels against f_c over their spread without the wavelength "
+         "(&lt; 1 collapses; &ge; 1.5 contradicts). Lobe "
          "comparison: penalised rmse_log with and without each lobe. Peak share: part of the fitted "
          "value at the specular peak carried by the diffraction lobe; the fits keep it at most equal to "
          "Cook-Torrance's (the talk's model), and the *_free columns show the full fit without that "

@@ -26,7 +26,7 @@ from pathlib import Path
 
 import pyopencl as cl
 
-from . import __version__
+from ._version import __version__
 from .codegen import kernel_sources_hash
 from .program import ABI_WARNING, ProgramError
 

@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import __version__
+from .._version import __version__
 from ..codegen import emit, kernel_dir
 from .fitfile import load_fit
 

@@ -46,9 +46,8 @@ def slice_directions(theta_i_deg, theta_o_deg, dphi_deg=None):
 
 
 def only_lobes(model, values, keep):
-    """``values`` with every amplitude outside the lobes ``keep`` zeroed (brdfcl.analyze's rule)."""
-    from ..analyze import only_lobes as by_name
-    return by_name(model, model.as_dict(values), keep)
+    """``values`` (a vector) with every amplitude outside the lobes ``keep`` zeroed."""
+    return model.only_lobes(model.as_dict(values), keep)
 
 
 def slice_values(table, model, values, theta_i_deg, theta_o_deg, dphi_deg=None, lobes=False):
