@@ -136,7 +136,7 @@ def compare(args, paths, n_mat):
     V = np.tile(configs[0]["eng"].model.defaults(), (len(names), 1))
     mats = np.arange(len(names))
     times = {i: [] for i in range(len(configs))}
-    for i, c in enumerate(configs):                           # warm-up: lazy kernel compiles
+    for c in configs:                                         # warm-up: lazy kernel compiles
         c["eng"].grad(c["cs"], V, mats)
     for _ in range(args.repeat):
         for i, c in enumerate(configs):
@@ -223,13 +223,13 @@ def main(argv=None):
     mats = np.arange(n_mat)
     t32 = median_time(lambda: eng32.grad(cs32, V, mats), args.repeat)
     rows.append(("OpenCL float32 (all materials, one launch)", n_mat, t32, n_mat * n_cells / t32))
-    del cs32
+    cs32 = None                                          # frees the device memory
 
     eng64 = Engine(args.model, device=args.device, real="double", metric=args.metric)
     cs64 = eng64.cellset(read_merl(p) for p in paths)
     t64 = median_time(lambda: eng64.grad(cs64, V, mats), args.repeat)
     rows.append(("OpenCL float64 (all materials, one launch)", n_mat, t64, n_mat * n_cells / t64))
-    del cs64
+    cs64 = None
 
     g = table_geometry()
     w = g.weight[idx]

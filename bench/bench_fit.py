@@ -344,7 +344,8 @@ def report(recs, batch_seconds, paths, all_paths, args, out):
         lines += ["", "Whole set: time until every material has reached the scipy fit's final rmse_log "
                   "(brdfcl: one batch, so the latest material; scipy and PyTorch: one material after "
                   "another, so the sum):", "",
-                  "| method | setting | all reached | time for the set (s) | speed-up vs scipy |", "|---|---|---|---|---|"]
+                  "| method | setting | all reached | time for the set (s) | speed-up vs scipy |",
+                  "|---|---|---|---|---|"]
         t_sc = sum(time_to(r, r.rows[-1][1] * (1 + 1e-3)) for r in scipy.values())
         for (method, setting), d in sorted(by.items()):
             tt = [time_to(r, scipy[nm].rows[-1][1] * (1 + 1e-3)) for nm, r in d.items() if nm in scipy]

@@ -125,7 +125,8 @@ def stability_report(data, out, model=DEFAULT_MODEL):
              f"**{n_nonfinite} non-finite values, {n_fail} failed fits.**", "",
              "Kernel evaluations at the corners of the parameter box (and alpha at 1e-4, a at both bounds, "
              "zero amplitudes), grazing cells included (no angle cut-off), float32 against float64:", "",
-             "| model | evaluations | non-finite | worst loss rel. diff | worst gradient rel. diff (entries > 1e-3 of max) |",
+             "| model | evaluations | non-finite | worst loss rel. diff "
+             "| worst gradient rel. diff (entries > 1e-3 of max) |",
              "|---|---|---|---|---|"]
     for spec, e in ev.items():
         lines.append(f"| `{spec}` | {e['evaluations']} | {e['nonfinite']} | {e['worst_loss_rel']:.2e} | "

@@ -8,7 +8,7 @@ import os
 import sys
 from dataclasses import fields, replace
 
-from . import __version__
+from ._version import __version__
 
 NO_CUTOFF_DEG = 90.0    # --cutoff at or beyond the horizon: no cutoff (FitOptions.cutoff_deg None)
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import hashlib
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cache, lru_cache
 from pathlib import Path
 
 from mako.template import Template
@@ -34,7 +34,7 @@ def kernel_dir() -> Path:
         + "): reinstall brdfcl, or run it from a source checkout")
 
 
-@lru_cache(maxsize=None)
+@cache
 def _read(rel: str) -> str:
     return (kernel_dir() / rel).read_text()
 

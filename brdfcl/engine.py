@@ -214,7 +214,7 @@ class Engine:
         prm_all = self._params(values)
         kern = self._kernels[kname]
         mf = cl.mem_flags
-        for b, (first, count, dbuf) in enumerate(cs.blocks):
+        for first, count, dbuf in cs.blocks:
             sel = np.flatnonzero((mats >= first) & (mats < first + count))
             if sel.size == 0:
                 continue

@@ -22,7 +22,8 @@ NO_DATA = "0.88"                     # face colour behind masked cells
 # the gradient test's per-cell vote: value -> (label, colour)
 VOTE_OUTSIDE, VOTE_UNDECIDED, VOTE_CT, VOTE_DIFFRACTION = 0, 1, 2, 3
 VOTE_COLORS = {VOTE_OUTSIDE: ("outside the\ntested region", "#ffffff"),
-               VOTE_UNDECIDED: ("undecided: below noise,\nno lobe signal, or the\npredictions < 10 deg apart", "#c8c8c8"),
+               VOTE_UNDECIDED: ("undecided: below noise,\nno lobe signal, or the\npredictions < 10 deg apart",
+                                "#c8c8c8"),
                VOTE_CT: ("Cook-Torrance", "#5e3c99"),
                VOTE_DIFFRACTION: ("diffraction", "#e66101")}
 

@@ -238,7 +238,7 @@ class Fitter:
         rows, xs = [], []
         for i, lst in by_mat.items():
             lst.sort(key=lambda t: t[0])
-            for f, xi in lst[:keep]:
+            for _, xi in lst[:keep]:
                 rows.append(i)
                 xs.append(xi)
         L = self._loss(cs_full, np.array(xs), np.array(rows))
@@ -266,7 +266,7 @@ class Fitter:
         m, o = self.model, self.opts
         slo, shi = m.search_x_lo, m.search_x_hi
         starts, owner = [], []
-        for q, (i, x, L, status) in enumerate(queued):
+        for q, (_, x, _, _) in enumerate(queued):
             for amp, shape in self.dead_lobes(x):
                 for k in range(o.probes):
                     xs = x.copy()

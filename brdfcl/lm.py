@@ -66,12 +66,13 @@ def _step(H, g, x, lo, hi, lam):
     return d
 
 
-def levenberg_marquardt(jtj_x, x0, lo, hi, opts: LMOptions = LMOptions(), on_done=None, on_iter=None):
+def levenberg_marquardt(jtj_x, x0, lo, hi, opts: LMOptions | None = None, on_done=None, on_iter=None):
     """Minimise each row's loss from x0 (n, k).
 
     ``jtj_x(x (m, k), rows (m,)) -> (loss (m,), JTr (m, k), JTJ (m, k, k))`` in x space.
     ``on_done(rows, x, loss, status)`` is called after each iteration with the rows that
     finished in it (so their results can be written as they arrive)."""
+    opts = opts or LMOptions()
     n, k = x0.shape
     x = np.clip(x0, lo, hi).astype(np.float64)
     L, g, H = jtj_x(x, np.arange(n))

@@ -20,7 +20,7 @@ BIG = 1e300
 
 @dataclass
 class Problem:
-    opt: "nlopt.opt"                 # configured optimiser (bounds, stopping); objective is set here
+    opt: nlopt.opt                 # configured optimiser (bounds, stopping); objective is set here
     x0: np.ndarray
     seed: int = 0
 
@@ -131,4 +131,7 @@ def run_lockstep(problems: list[Problem], evaluate) -> list[Outcome]:
         t.join()
     if failure:
         raise failure[0]
-    return outcomes
+    done = [o for o in outcomes if o is not None]
+    if len(done) != n:
+        raise RuntimeError(f"{n - len(done)} optimiser threads ended without an outcome")
+    return done

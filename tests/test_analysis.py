@@ -41,7 +41,8 @@ def test_specular_lobe_is_not_diffraction():
     much as f's in its tails: against a bare theta_h axis it scored ~0.7; against the CT prediction
     the test gives it to CT, with or without a Fresnel factor.  It also has no wavelength dependence."""
     for spec, extra in (("ggx:smith:none", {}), ("diffuse+ggx:smith:schlick", {"ct.F0": (0.9,) * 3}),
-                        ("diffuse+ggx:smith:dielectric", {"ct.eta": 1.5, "diffuse.rho": (0.002,) * 3}), ("diffuse+beckmann:smith:none", {})):
+                        ("diffuse+ggx:smith:dielectric", {"ct.eta": 1.5, "diffuse.rho": (0.002,) * 3}),
+                        ("diffuse+beckmann:smith:none", {})):
         for alpha in (0.05, 0.2):
             t = _table(spec, {"ct.rho": (0.8, 0.8, 0.8), "ct.alpha": alpha, **extra})
             g = gradient_test(t)

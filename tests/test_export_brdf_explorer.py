@@ -8,9 +8,9 @@ semantics) and in double, on random direction pairs; and for syntax with glslang
 skips with a reason when its compiler is missing."""
 import json
 import re
-import zlib
 import shutil
 import subprocess
+import zlib
 
 import numpy as np
 import pytest

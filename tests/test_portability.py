@@ -149,7 +149,8 @@ def test_a_broken_pocl_cache_does_not_break_the_next_run(tmp_path, device, damag
     assert run().stderr.count("removed") == 0                 # repaired for good
 
 
-@pytest.mark.skipif(len(POCL) < 2, reason="only one PoCL build installed (apt-get install pocl-opencl-icd adds Debian's)")
+@pytest.mark.skipif(len(POCL) < 2,
+                    reason="only one PoCL build installed (apt-get install pocl-opencl-icd adds Debian's)")
 def test_every_pocl_build_gives_the_same_fit(demo_db):
     (table,) = [read_merl(demo_db / "synth-smooth-metal.binary")]
     losses = {}

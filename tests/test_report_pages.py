@@ -12,7 +12,8 @@ NAMES = ["synth-smooth-metal", "synth-fabric"]
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 PROBE = """<script>window.addEventListener('load', function () {
   var im = document.images, bad = [];
-  for (var i = 0; i < im.length; i++) if (!(im[i].complete && im[i].naturalWidth > 0)) bad.push(im[i].getAttribute('src'));
+  for (var i = 0; i < im.length; i++)
+    if (!(im[i].complete && im[i].naturalWidth > 0)) bad.push(im[i].getAttribute('src'));
   document.body.setAttribute('data-images', im.length + ' ' + bad.length + ' ' + bad.join(','));
 });</script>"""
 

@@ -27,7 +27,7 @@ def cli(*args, **kw):
 def snapshot(folder):
     """Every file under folder -> (bytes, mtime_ns); a symlink: its target's bytes, its own mtime."""
     out = {}
-    for root, dirs, files in os.walk(folder):
+    for root, _, files in os.walk(folder):
         for f in files:
             p = os.path.join(root, f)
             st = os.lstat(p)

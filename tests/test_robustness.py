@@ -137,7 +137,7 @@ def test_merl_reader_fuzz(tmp_path):
     p = tmp_path / "fuzz.binary"
     t0 = time.time()
     kinds = {"ok": 0, "error": 0}
-    for i in range(300):
+    for _ in range(300):
         head = rng.choice([HEADER, rng.integers(-5, 200, 3).astype("<i4"),
                            np.array([90, 90, 180], "<i4"), np.array([180, 90, 90], "<i4")])
         size = rng.choice([0, 4, 11, 12, 13, 1000, FILE_SIZE - 12, FILE_SIZE - 12 - 8, FILE_SIZE - 4])

@@ -13,13 +13,14 @@ import json
 import time
 
 import numpy as np
+
 from brdfcl.engine import select_cells
 from brdfcl.fit import FitOptions, Fitter, coarse_cells
+from brdfcl.geometry import table_geometry
 from brdfcl.lm import LMOptions, levenberg_marquardt
 from brdfcl.lobes.cells import Cells
 from brdfcl.model import Model
 from brdfcl.output import result_document
-from brdfcl.geometry import table_geometry
 from brdfcl.synth import DEMO, demo_values
 from brdfcl.uncertainty import ALBEDO_LIMIT, bounds_hit, directional_albedo, flags
 

@@ -12,8 +12,15 @@ from brdfcl.merl import read_merl
 from brdfcl.model import Model
 from brdfcl.view import sphere
 from brdfcl.view.slices import slice_directions, slice_values, write_slices
-from brdfcl.view.sphere import (DEFAULT_LIGHTS, render_model_sphere, render_table_sphere,
-                                rusinkiewicz, sphere_normals, table_lookup, write_spheres)
+from brdfcl.view.sphere import (
+    DEFAULT_LIGHTS,
+    render_model_sphere,
+    render_table_sphere,
+    rusinkiewicz,
+    sphere_normals,
+    table_lookup,
+    write_spheres,
+)
 
 NAME = "synth-smooth-metal"
 

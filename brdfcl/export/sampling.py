@@ -34,7 +34,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from ..lobes import CookTorrance, Diffraction, Diffuse, REGISTRY
+from ..lobes import REGISTRY, CookTorrance, Diffraction, Diffuse
 from ..lobes.cells import Cells
 from ..model import Model
 

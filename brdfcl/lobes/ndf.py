@@ -73,12 +73,12 @@ def epd_consts(beta, p):
 
 
 def epd(c, beta, p, N, dN_beta, dN_p):
-    l = np.log(c.t2 / (beta * beta))
-    q = np.exp(np.minimum(p * l, 80.0))
+    lt = np.log(c.t2 / (beta * beta))
+    q = np.exp(np.minimum(p * lt, 80.0))
     h = np.exp(-q) / c.ch ** 4
     hq = h * q
     return N * h, {"beta": h * dN_beta + hq * (N * 2.0 * p / beta),
-                   "p": h * dN_p - hq * l * N}
+                   "p": h * dN_p - hq * lt * N}
 
 
 def _consts_adapter(fn):

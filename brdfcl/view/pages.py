@@ -26,7 +26,8 @@ STYLE = """body{font-family:sans-serif;margin:1em auto;max-width:1400px;color:#2
 table{border-collapse:collapse}td,th{border:1px solid #ccc;padding:3px 6px;font-size:13px;text-align:right}
 th{background:#f3f3f3;cursor:pointer;vertical-align:bottom}td.l,th.l{text-align:left}
 th.sorted-up::after{content:" \\25B2"}th.sorted-down::after{content:" \\25BC"}
-img.thumb{height:56px;display:block}.figs img{display:block;width:100%;max-width:1400px;height:auto;margin:.4em 0 1.2em}.figs img.sphere{max-width:1000px}
+img.thumb{height:56px;display:block}.figs img.sphere{max-width:1000px}
+.figs img{display:block;width:100%;max-width:1400px;height:auto;margin:.4em 0 1.2em}
 .diffraction{background:#fde8d8}.none{background:#e3eefc}.flag{color:#a00}small{color:#666}"""
 SORT_JS = """document.querySelectorAll('table.sortable').forEach(function(t){
  t.querySelectorAll('th').forEach(function(th,i){th.addEventListener('click',function(){
@@ -154,11 +155,12 @@ def comparison_page(entries, title, rep) -> str:
         if analysed:
             cells.append(_td(html.escape(e.verdict or ""), e.verdict or "", "l"))
         cells += [_num(e.errors.get(m)) for m in METRICS]
-        for g, ks in groups.items():
+        for ks in groups.values():
             vals = [e.params[k] for k in ks if k in e.params]
             cells.append(_td(" / ".join(f"{v:.3g}" for v in vals), sum(vals) / len(vals) if vals else ""))
         short = e.status.split(" (")[0]
-        cells.append(_td(f"<span title='{html.escape(e.status, quote=True)}'>{html.escape(short)}</span>", e.status, "l"))
+        status = f"<span title='{html.escape(e.status, quote=True)}'>{html.escape(short)}</span>"
+        cells.append(_td(status, e.status, "l"))
         tip = html.escape("\n".join(e.flags), quote=True)
         cells.append(_td(f"<span class='flag' title='{tip}'>{len(e.flags)}</span>" if e.flags else "0", len(e.flags)))
         h.append(f"<tr class='{html.escape(e.verdict or '')}'>" + "".join(cells) + "</tr>")
@@ -187,7 +189,8 @@ def material_page(e, images, rep) -> str:
             h.append("</div>")
     if images.get("exr"):
         h.append("<p><small>Linear images: " + ", ".join(
-            f"<a href='{_q(os.path.relpath(p, rep))}'>{html.escape(p.name)}</a>" for p in images["exr"]) + "</small></p>")
+            f"<a href='{_q(os.path.relpath(p, rep))}'>{html.escape(p.name)}</a>" for p in images["exr"])
+                 + "</small></p>")
     if e.figures:
         h.append("<h2>Analysis</h2><div class='figs'>")
         h += [f"<img src='{_q(os.path.relpath(p, rep))}' alt='{html.escape(Path(p).name)}'>" for p in e.figures]
@@ -204,7 +207,8 @@ def _param_table(e):
         v = e.params.get(s.name)
         err = se.get(s.name)
         rows.append(f"<tr><td class='l'>{html.escape(s.name)}</td>{_num(v)}"
-                    f"<td>{'' if err is None else f'{err:.3g}'}</td><td class='l'>{html.escape(s.param.unit or '')}</td>"
+                    f"<td>{'' if err is None else f'{err:.3g}'}</td>"
+                    f"<td class='l'>{html.escape(s.param.unit or '')}</td>"
                     f"<td>{s.param.lo:.3g} .. {s.param.hi:.3g}</td></tr>")
     rows.append("</table>")
     if e.uncertainty and e.uncertainty.get("method"):
