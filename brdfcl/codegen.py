@@ -15,7 +15,7 @@ from pathlib import Path
 from mako.template import Template
 
 from .lobes.lobe import Emitter
-from .metrics import CBRT_EPS, check_metric
+from .metrics import IMPLEMENTED_METRICS, check_metric
 from .model import Model
 
 
@@ -101,9 +101,11 @@ def render(model: Model, opt: KernelOptions) -> str:
         cols |= set(em.jac[ch])
     assert cols == set(range(model.n_free)), "every free parameter needs a Jacobian column"
     vec = "" if opt.vw == 1 else str(opt.vw)
+    fit_g, fit_dg = IMPLEMENTED_METRICS[opt.metric].c("x", "g")    # metric_g / metric_dg
     return _template().render(
         spec=model.spec, real=opt.real, vw=opt.vw, wg=opt.local, chunk=opt.chunk,
-        metric=opt.metric, cosw=opt.cosw, cbrt_eps=repr(CBRT_EPS),
+        metric=opt.metric, cosw=opt.cosw, metric_g=fit_g, metric_dg=fit_dg,
+        reported=[(m.name, m.c("xp")[0], m.c("xm")[0]) for m in IMPLEMENTED_METRICS.values()],
         real_v=opt.real + vec, cond_v=("int" if opt.real == "float" else "long") + vec,
         common=_read("common.cl"), sources=[_read(f) for f in files],
         slots=model.slots, n_slots=model.n_params,
@@ -120,4 +122,5 @@ def jtj_pairs(model: Model):
 
 def n_outputs(model: Model, n_pairs: int) -> dict:
     """Partial sums each kernel writes per evaluation and work-group."""
-    return {"loss": 1, "grad": 1 + model.n_free, "jtj": 1 + model.n_free + n_pairs, "errors": 5}
+    return {"loss": 1, "grad": 1 + model.n_free, "jtj": 1 + model.n_free + n_pairs,
+            "errors": len(IMPLEMENTED_METRICS) + 2}      # sum w r^2 per metric, sum w x_m^2, sum w

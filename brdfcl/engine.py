@@ -22,6 +22,7 @@ from .codegen import KernelOptions, jtj_pairs, n_outputs, render
 from .device import has_fp64, pick_device
 from .geometry import DEFAULT_CUTOFF_DEG, table_geometry
 from .lobes.cells import Cells
+from .metrics import METRICS
 from .model import Model
 from .program import KERNELS, ProgramError, build, repair_pocl_cache
 from .width import is_cpu
@@ -156,6 +157,7 @@ class Engine:
         self.opt = default_options(self.device, real, metric=metric, cosw=cosw, **options)
         self.dtype = np.float32 if real == "float" else np.float64
         self.source = render(self.model, self.opt)
+        self.reported = tuple(METRICS)      # the errors kernel's sums, in order (brdfcl.metrics)
         self.pairs = jtj_pairs(self.model)
         self.n_out = n_outputs(self.model, len(self.pairs))
         self.program, self.self_test = self._compile(verify)
@@ -249,9 +251,11 @@ class Engine:
     def errors(self, cs, values, mats):
         """Reported errors (brdfcl.metrics) per evaluation: dict of arrays."""
         o = self._run("errors", cs, values, mats)
-        sw = np.maximum(o[:, 4], 1e-300)
-        return {"rmse_l2": np.sqrt(o[:, 0] / sw), "rmse_log": np.sqrt(o[:, 1] / sw),
-                "rmse_cbrt": np.sqrt(o[:, 2] / sw), "rel_rmse": np.sqrt(o[:, 0] / np.maximum(o[:, 3], 1e-300))}
+        n = len(self.reported)
+        sw = np.maximum(o[:, n + 1], 1e-300)
+        out = {f"rmse_{name}": np.sqrt(o[:, i] / sw) for i, name in enumerate(self.reported)}
+        out["rel_rmse"] = np.sqrt(o[:, self.reported.index("l2")] / np.maximum(o[:, n], 1e-300))
+        return out
 
     def tabulate(self, values):
         """Model values (3, N_CELLS) over the whole table for one parameter vector, NaN below the

@@ -26,24 +26,12 @@ ${src}
 /* metric (brdfcl/metrics.py) */
 inline real_v metric_g(real_v x)
 {
-% if metric == "l2":
-    return x;
-% elif metric == "log":
-    return log1p(x);
-% else:
-    return cbrt(x + (real)${cbrt_eps});
-% endif
+    return ${metric_g};
 }
 
 inline real_v metric_dg(real_v x, real_v g)
 {
-% if metric == "l2":
-    return (real_v)1;
-% elif metric == "log":
-    return 1 / (1 + x);
-% else:
-    return 1 / (3 * g * g);
-% endif
+    return ${metric_dg};
 }
 
 inline real hsum(real_v v)
@@ -199,11 +187,11 @@ ${residuals()}
 ${reduce_and_write(['acc_l'] + ['acc_g%d' % k for k in range(n_free)] + ['acc_h%d_%d' % ab for ab in pairs])}
 }
 
-/* every reported error at once: sum w r^2 for l2, log, cbrt, sum w x_m^2, sum w */
+/* every reported error at once: sum w r^2 for ${', '.join(n for n, _, _ in reported)}, sum w x_m^2, sum w */
 __kernel __attribute__((reqd_work_group_size(1, ${wg}, 1))) void errors(KARGS)
 {
 ${prologue()}
-    real_v acc_l2 = 0, acc_log = 0, acc_cbrt = 0, acc_mm = 0, acc_w = 0;
+    real_v ${''.join('err_%s = 0, ' % n for n, _, _ in reported)}acc_mm = 0, acc_w = 0;
     for (int v = v0 + lid; v < v1; v += ${wg}) {
 ${cell_and_model()}
         const real_v cw = ${'c.ci' if cosw else '(real_v)1'};
@@ -212,18 +200,18 @@ ${cell_and_model()}
         const real_v m = VLOAD(M, ${ch} * n_cells + o);
         const real_v ww = SEL(w, (real_v)0, isnan(m));
         const real_v xm = SEL(m * cw, (real_v)0, isnan(m)), xp = SEL(p${ch} * cw, (real_v)0, isnan(m));
-        const real_v d = xp - xm;
-        const real_v dl = log1p(xp) - log1p(xm);
-        const real_v dc = cbrt(xp + (real)${cbrt_eps}) - cbrt(xm + (real)${cbrt_eps});
-        acc_l2 += ww * d * d;
-        acc_log += ww * dl * dl;
-        acc_cbrt += ww * dc * dc;
+% for n, gp, gm in reported:
+        const real_v d_${n} = ${gp} - ${gm};
+% endfor
+% for n, _, _ in reported:
+        err_${n} += ww * d_${n} * d_${n};
+% endfor
         acc_mm += ww * xm * xm;
         acc_w += ww;
         }
 % endfor
     }
-${reduce_and_write(['acc_l2', 'acc_log', 'acc_cbrt', 'acc_mm', 'acc_w'])}
+${reduce_and_write(['err_' + n for n, _, _ in reported] + ['acc_mm', 'acc_w'])}
 }
 
 /* model values at every cell of the set for one parameter vector per evaluation: out (e, 3, n) */
