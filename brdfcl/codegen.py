@@ -41,12 +41,14 @@ def _read(rel: str) -> str:
 
 @lru_cache(maxsize=1)
 def kernel_sources_hash() -> str:
-    """A hash of every kernel source and the template: decisions cached about compiled programs
-    (brdfcl.width) are stale once the kernels change."""
+    """A hash of every kernel source, the template and the metrics' C expressions: decisions
+    cached about compiled programs (brdfcl.width) are stale once any of them changes."""
     h = hashlib.sha1()
     for p in sorted(kernel_dir().rglob("*")):
         if p.suffix in (".cl", ".mako"):
             h.update(p.relative_to(kernel_dir()).as_posix().encode() + b"\0" + p.read_bytes())
+    for m in IMPLEMENTED_METRICS.values():
+        h.update("\0".join((m.name, *m.c("x", "g"))).encode())
     return h.hexdigest()
 
 
