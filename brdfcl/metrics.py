@@ -104,7 +104,7 @@ class _MetricNames(Sequence):
     def __eq__(self, other):
         return isinstance(other, Sequence) and not isinstance(other, str) and tuple(self) == tuple(other)
 
-    __hash__ = None
+    __hash__ = None  # type: ignore[assignment]  # equal to tuples, so not hashable
 
     def __repr__(self):
         return repr(tuple(self))
