@@ -99,7 +99,8 @@ def lobe_images(spec, params):
     cells, ok, shape = slice_cells()
     out = {}
     model = Model(spec)
-    groups = {"diffuse_diffraction": ("diffuse", "diffraction"), "ct": ("ct",), "full": None}
+    groups = {"diffuse_diffraction": model.prefixes_with_role("diffuse", "diffraction"),
+              "ct": model.prefixes_with_role("reflection"), "full": None}
     for key, keep in groups.items():
         p = np.full((3, ok.size), np.nan)
         p[:, ok] = model.reference(cells, model.only_lobes(params, keep), jacobian=False)
@@ -113,11 +114,12 @@ def lobe_images(spec, params):
 def peak_share(spec, params):
     """Share of the fitted value at the specular peak (brdfcl.peak_order.peak_cell) due to diffraction."""
     model = Model(spec)
-    if not model.has("diffraction"):
+    if not model.has_role("diffraction"):
         return 0.0
     cells = peak_cell()
     total = model.reference(cells, model.only_lobes(params, None), jacobian=False).sum()
-    part = model.reference(cells, model.only_lobes(params, ("diffraction",)), jacobian=False).sum()
+    part = model.reference(cells, model.only_lobes(params, model.prefixes_with_role("diffraction")),
+                           jacobian=False).sum()
     return float(part / max(total, 1e-300))
 
 
@@ -126,9 +128,11 @@ def analyze_material(name, brdf, fits, specs) -> MaterialAnalysis:
     sel, pen = select(errors, {k: specs[k] for k in errors})
     gm = gradient_test(brdf)
     full = fits["full"]
-    diffuse = [full.params.get(f"diffuse.rho_{c}", 0.0) / np.pi for c in "rgb"]
-    wl = wavelength_check(brdf, diffuse, Model(specs["full"]).lambdas)
-    lobe_says = "diffraction" in specs[sel]
+    full_model = Model(specs["full"])
+    diffuse = [sum(full.params.get(lb.slot_name("rho", ch), 0.0) for lb in full_model.lobes_with_role("diffuse"))
+               / np.pi for ch in range(3)]
+    wl = wavelength_check(brdf, diffuse, full_model.lambdas)
+    lobe_says = Model(specs[sel]).has_role("diffraction")
     decidable = gm.n_cells.sum() >= MIN_DECIDABLE
     grad_says = (gm.mean_score >= 0.5) if decidable else None
     wl_says = wl.consistent

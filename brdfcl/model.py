@@ -3,7 +3,10 @@
 Model strings join lobes with ``+``; options follow a lobe after ``:``, e.g.
 ``diffuse+diffraction:hp+ggx:smith:schlick``.  Lobes: ``diffuse``,
 ``diffraction[:PSD][:FRESNEL]``, and a Cook-Torrance lobe named by its
-distribution ``ggx|beckmann|sgd|epd[:SHADOWING][:FRESNEL]``.
+distribution ``ggx|beckmann|sgd|epd[:SHADOWING][:FRESNEL]``.  A kind may appear any
+number of times: its lobes' parameters are prefixed ``ct``, ``ct2``, ``ct3``, ... in order
+(``diffuse``, ``diffuse2``; ``diffraction``, ``diffraction2``).  Each lobe has a role
+(diffuse, diffraction, reflection) by which the rest of the package finds it.
 
 The optimiser works on ``x``: the free parameters, in log space where the
 parameter is flagged ``log`` (alpha, a, amplitudes).  Everything the kernels
@@ -17,7 +20,7 @@ from functools import cached_property
 import numpy as np
 
 from .lobes import LAMBDAS, REGISTRY, CookTorrance, Diffraction, Diffuse
-from .lobes.lobe import Lobe, Slot
+from .lobes.lobe import ROLES, Lobe, Slot
 
 DEFAULT_MODEL = "diffuse+diffraction+ggx"
 CT_NDFS = tuple(REGISTRY["ndf"])
@@ -65,6 +68,17 @@ def parse_lobe(text: str, lambdas=LAMBDAS) -> Lobe:
     raise ModelError(f"unknown lobe '{name}' in '{text}'; {_valid_text()}")
 
 
+def lobe_prefixes(kinds):
+    """Parameter prefixes of lobes of the given kinds, in order: a kind's first lobe has the kind's
+    prefix (``ct``), its second ``ct2``, its third ``ct3``, ..."""
+    seen: dict[str, int] = {}
+    out = []
+    for k in kinds:
+        seen[k] = seen.get(k, 0) + 1
+        out.append(k if seen[k] == 1 else f"{k}{seen[k]}")
+    return out
+
+
 def _frozen(a):
     a.setflags(write=False)
     return a
@@ -73,13 +87,18 @@ def _frozen(a):
 class Model:
     """A sum of lobes with its parameter slots; optionally some parameters fixed."""
 
-    def __init__(self, spec: str = DEFAULT_MODEL, fixed: dict | None = None, lambdas=LAMBDAS):
+    def __init__(self, spec: str = DEFAULT_MODEL, fixed: dict | None = None, lambdas=LAMBDAS,
+                 prefixes=None):
         if not spec or not spec.strip():
             raise ModelError(f"empty model; {_valid_text()}")
         self.lobes = [parse_lobe(t, lambdas) for t in spec.split("+")]
-        kinds = [lb.prefix for lb in self.lobes]
-        if len(set(kinds)) != len(kinds):
-            raise ModelError(f"'{spec}': each lobe kind may appear once (got {', '.join(kinds)})")
+        if prefixes is None:
+            prefixes = lobe_prefixes([lb.kind for lb in self.lobes])
+        if len(prefixes) != len(self.lobes) or len(set(prefixes)) != len(prefixes):
+            raise ModelError(f"'{spec}': lobe prefixes {', '.join(prefixes)} are not one distinct "
+                             f"prefix per lobe")
+        for lb, pre in zip(self.lobes, prefixes):
+            lb.prefix = pre
         self.lambdas = tuple(lambdas)
         self.slots: list[Slot] = [s for lb in self.lobes for s in lb.slots()]
         self.names = [s.name for s in self.slots]
@@ -121,6 +140,29 @@ class Model:
 
     def has(self, prefix):
         return any(lb.prefix == prefix for lb in self.lobes)
+
+    def lobes_with_role(self, role) -> list[Lobe]:
+        """The lobes that play ``role`` (one of brdfcl.lobes.lobe.ROLES), in model order."""
+        if role not in ROLES:
+            raise ValueError(f"unknown lobe role '{role}'; roles: {', '.join(ROLES)}")
+        return [lb for lb in self.lobes if lb.role == role]
+
+    def prefixes_with_role(self, *roles) -> tuple[str, ...]:
+        """Parameter prefixes of the lobes playing any of ``roles`` (for ``only_lobes``)."""
+        return tuple(lb.prefix for r in roles for lb in self.lobes_with_role(r))
+
+    def has_role(self, role) -> bool:
+        return bool(self.lobes_with_role(role))
+
+    def submodel(self, lobes):
+        """The model made of some of this model's lobes, with their parameter names (and fixed
+        values); None when ``lobes`` is empty."""
+        lobes = list(lobes)
+        if not lobes:
+            return None
+        pre = [lb.prefix for lb in lobes]
+        fixed = {k: v for k, v in self.fixed.items() if k.split(".", 1)[0] in pre}
+        return Model("+".join(lb.spec() for lb in lobes), fixed=fixed, lambdas=self.lambdas, prefixes=pre)
 
     def defaults(self):
         v = np.array([s.param.default for s in self.slots])

@@ -4,8 +4,8 @@ Cook-Torrance and diffraction fit the same tables (GGX's D and the hp PSD are th
 function of sin theta_h at theta_d = 0), so a free fit of both may swap their roles: a
 broad CT lobe for the wide angles and a narrow diffraction lobe on the peak.  The talk's
 model gives each lobe one region, and this makes it a constraint of the fit: at the
-specular peak (`peak_cell`), in every channel, the diffraction lobe's value may not
-exceed the CT lobe's,
+specular peak (`peak_cell`), in every channel, the diffraction lobes' summed value may not
+exceed the reflection (CT) lobes',
 
     ln W_c(peak) - ln C_c(peak) <= 0,
 
@@ -33,14 +33,10 @@ def peak_cell(n=1):
     return Cells.from_directions(wi, wo)
 
 
-def lobe_model(model, prefix):
-    """The sub-model made of one lobe of ``model`` (same parameter names), or None."""
-    from .model import Model
-    lobe = next((lb for lb in model.lobes if lb.prefix == prefix), None)
-    if lobe is None:
-        return None
-    fixed = {k: v for k, v in model.fixed.items() if k.startswith(prefix + ".")}
-    return Model(lobe.spec(), fixed=fixed, lambdas=model.lambdas)
+def lobe_model(model, role):
+    """The sub-model made of the lobes of ``model`` that play ``role`` (same parameter names), or
+    None when there is none."""
+    return model.submodel(model.lobes_with_role(role))
 
 
 class PeakOrder:
@@ -55,8 +51,8 @@ class PeakOrder:
 
     @classmethod
     def for_model(cls, model):
-        """The penalty for a model with a diffraction and a Cook-Torrance lobe, else None."""
-        w, c = lobe_model(model, "diffraction"), lobe_model(model, "ct")
+        """The penalty for a model with diffraction and reflection (Cook-Torrance) lobes, else None."""
+        w, c = lobe_model(model, "diffraction"), lobe_model(model, "reflection")
         return cls(model, w, c) if w is not None and c is not None else None
 
     def _lobe(self, sub, values):

@@ -9,21 +9,22 @@ million cells any improvement of a misspecified model is "significant".
 """
 from __future__ import annotations
 
-from .model import Model
+from .model import Model, parse_lobe
 
 PENALTY = 0.02
 
 
 def variants(spec: str) -> dict:
-    """{'full': spec, 'no_diffraction': ..., 'no_ct': ...} for a model with both lobes."""
+    """{'full': spec, 'no_diffraction': ..., 'no_ct': ...}: the model without its diffraction
+    lobes, and without its reflection (Cook-Torrance) lobes, each where that leaves a lobe out and
+    some lobe in.  Lobes are dropped by role, wherever and however often they appear."""
     lobes = spec.split("+")
+    roles = [parse_lobe(t).role for t in lobes]
     out = {"full": spec}
-    nod = [lb for lb in lobes if not lb.startswith("diffraction")]
-    noct = [lb for lb in lobes if lb.split(":")[0] in ("diffuse", "diffraction")]
-    if len(nod) < len(lobes) and nod:
-        out["no_diffraction"] = "+".join(nod)
-    if len(noct) < len(lobes) and noct:
-        out["no_ct"] = "+".join(noct)
+    for key, role in (("no_diffraction", "diffraction"), ("no_ct", "reflection")):
+        kept = [lb for lb, r in zip(lobes, roles) if r != role]
+        if len(kept) < len(lobes) and kept:
+            out[key] = "+".join(kept)
     return out
 
 

@@ -34,7 +34,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from ..lobes import REGISTRY, CookTorrance, Diffraction, Diffuse
+from ..lobes import REGISTRY
 from ..lobes.cells import Cells
 from ..model import Model
 
@@ -49,7 +49,8 @@ _SQRT2 = np.sqrt(2.0)
 class Component:
     kind: str           # "cosine", "ggx" or "beckmann" (half-vector distributions)
     alpha: float        # roughness of a half-vector component (nan for cosine)
-    lobe: str           # the lobe prefix it stands for ("diffuse", "ct", "diffraction")
+    lobe: str           # the lobe prefix it stands for ("ct", "ct2", "diffraction"; "diffuse": every
+    #                     diffuse lobe, for the cosine component)
     channel: int | None  # diffraction: the channel whose wavelength set alpha
     weight: float = 0.0
 
@@ -112,9 +113,9 @@ class Sampler:
         self._value = lambda name: self.values[..., pos[name]]
         comps = [Component("cosine", float("nan"), "diffuse", None)]
         for lb in model.lobes:
-            if isinstance(lb, CookTorrance):
+            if lb.role == "reflection":
                 comps.append(self._ct_component(lb))
-            elif isinstance(lb, Diffraction):
+            elif lb.role == "diffraction":
                 comps += self._diffraction_components(lb)
         self.components = self._weigh(comps, n_albedo)
         w = np.array([c.weight for c in self.components])
@@ -128,7 +129,7 @@ class Sampler:
         name = lb.ndf.name
         if name in ("ggx", "beckmann"):
             alpha = float(self._value(lb.slot_name("alpha")))
-            return Component(name, float(np.clip(alpha, *ALPHA_RANGE)), "ct", None)
+            return Component(name, float(np.clip(alpha, *ALPHA_RANGE)), lb.prefix, None)
         consts = self._lobe_consts(lb)
 
         def ratio(t2):
@@ -138,7 +139,7 @@ class Sampler:
                 D, _ = lb.ref_term(lb.ndf, c, self._value, consts)
             return D[0] / D[1]
         t2 = _half_point(ratio, 1e-14, 1e8)
-        return Component("ggx", float(np.clip(_ggx_alpha_at_half(t2), *ALPHA_RANGE)), "ct", None)
+        return Component("ggx", float(np.clip(_ggx_alpha_at_half(t2), *ALPHA_RANGE)), lb.prefix, None)
 
     def _diffraction_components(self, lb):
         consts = self._lobe_consts(lb)
@@ -152,7 +153,7 @@ class Sampler:
             s = min(f_half * lam / 2.0, 0.999)       # sin(theta_h) at half maximum, cos(theta_d) ~ 1
             t2 = s * s / (1.0 - s * s)
             alpha = _ggx_alpha_at_half(t2)
-            out.append(Component("ggx", float(np.clip(alpha, *ALPHA_RANGE)), "diffraction", ch))
+            out.append(Component("ggx", float(np.clip(alpha, *ALPHA_RANGE)), lb.prefix, ch))
         return out
 
     def _weigh(self, comps, n):
@@ -161,12 +162,11 @@ class Sampler:
         u = qmc.Sobol(2, scramble=True, seed=1).random(n)
         albedo = []
         for c in comps:
-            sub = {"diffuse": Diffuse, "ct": CookTorrance, "diffraction": Diffraction}[c.lobe]
-            lobe = next((lb for lb in self.model.lobes if isinstance(lb, sub)), None)
-            if lobe is None:                       # defensive cosine component, no diffuse lobe
+            m = self.model.submodel(self.model.lobes_with_role("diffuse") if c.kind == "cosine" else
+                                    [lb for lb in self.model.lobes if lb.prefix == c.lobe])
+            if m is None:                          # defensive cosine component, no diffuse lobe
                 albedo.append(0.0)
                 continue
-            m = Model(lobe.spec(), lambdas=self.model.lambdas)
             vals = np.array([self._value(nm) for nm in m.names])
             est = []
             for th in np.radians([0.0, 30.0, 60.0]):

@@ -10,6 +10,7 @@ RHO_S = Param("rho", 1e-6, 10.0, 0.5, log=True, per_channel=True, search=(1e-2, 
 
 class CookTorrance(Lobe):
     prefix = "ct"
+    role = "reflection"
     amplitude = RHO_S
 
     def __init__(self, ndf="ggx", shadowing=None, fresnel="schlick"):
@@ -49,19 +50,20 @@ class CookTorrance(Lobe):
     def emit(self, em, ctx):
         D, dD = self.emit_term(em, self.ndf, "&c", "")
         G, dG = self.emit_term(em, self.shadowing, "&c", "")
-        em.line(f"const real_v ct_shape = {D} * {G} * c.inv4cico;")
+        shape = f"{self.prefix}_shape"
+        em.line(f"const real_v {shape} = {D} * {G} * c.inv4cico;")
         dshape = {}
         for k in {**dD, **dG}:
             parts = ([f"{dD[k]} * {G}"] if k in dD else []) + ([f"{D} * {dG[k]}"] if k in dG else [])
-            dshape[k] = f"ct_dshape_{k.split('.')[-1]}"
+            dshape[k] = f"{self.prefix}_dshape_{k.split('.')[-1]}"
             em.line(f"const real_v {dshape[k]} = ({' + '.join(parts)}) * c.inv4cico;")
         shared = None if self.fresnel.per_channel else self.emit_term(em, self.fresnel, "&c", "")
         for ch in range(3):
             F, dF = shared or self.emit_term(em, self.fresnel, "&c", "", ch)
             rho = self.slot_name("rho", ch)
-            em.add(ch, f"{ctx.c(rho)} * ct_shape * {F}")
-            em.add_jac(ch, rho, f"ct_shape * {F}")
+            em.add(ch, f"{ctx.c(rho)} * {shape} * {F}")
+            em.add_jac(ch, rho, f"{shape} * {F}")
             for k, d in dshape.items():
                 em.add_jac(ch, k, f"{ctx.c(rho)} * {F} * {d}")
             for k, d in dF.items():
-                em.add_jac(ch, k, f"{ctx.c(rho)} * ct_shape * {d}")
+                em.add_jac(ch, k, f"{ctx.c(rho)} * {shape} * {d}")

@@ -15,6 +15,7 @@ LAMBDAS = (0.645, 0.526, 0.444)
 
 class Diffraction(Lobe):
     prefix = "diffraction"
+    role = "diffraction"
     amplitude = RHO_W
 
     def __init__(self, psd="hp", fresnel="none", lambdas=LAMBDAS):
@@ -44,16 +45,17 @@ class Diffraction(Lobe):
 
     def emit(self, em, ctx):
         shared = None if self.fresnel.per_channel else self.emit_term(em, self.fresnel, "&c", "")
+        dr = "dr" + self.tag                # C names: dr_f_0, dr_scale_0 (dr2_... for a second lobe)
         for ch, lam in enumerate(self.lambdas):
-            em.line(f"const real_v dr_f_{ch} = c.f0 * (real){1.0 / lam!r};")
-            S, dS = self.emit_term(em, self.psd, f"dr_f_{ch}", f"_{ch}")
+            em.line(f"const real_v {dr}_f_{ch} = c.f0 * (real){1.0 / lam!r};")
+            S, dS = self.emit_term(em, self.psd, f"{dr}_f_{ch}", f"_{ch}")
             F, dF = shared or self.emit_term(em, self.fresnel, "&c", "", ch)
             rho = self.slot_name("rho", ch)
             il4 = f"(real){lam ** -4!r}"
-            em.line(f"const real dr_scale_{ch} = {ctx.c(rho)} * {il4};")
-            em.add(ch, f"dr_scale_{ch} * {F} * {S}")
+            em.line(f"const real {dr}_scale_{ch} = {ctx.c(rho)} * {il4};")
+            em.add(ch, f"{dr}_scale_{ch} * {F} * {S}")
             em.add_jac(ch, rho, f"{il4} * {F} * {S}")
             for k, d in dS.items():
-                em.add_jac(ch, k, f"dr_scale_{ch} * {F} * {d}")
+                em.add_jac(ch, k, f"{dr}_scale_{ch} * {F} * {d}")
             for k, d in dF.items():
-                em.add_jac(ch, k, f"dr_scale_{ch} * {S} * {d}")
+                em.add_jac(ch, k, f"{dr}_scale_{ch} * {S} * {d}")

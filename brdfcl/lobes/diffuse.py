@@ -11,6 +11,7 @@ RHO_D = Param("rho", 1e-6, 1.0, 0.1, log=True, per_channel=True, doc="diffuse al
 
 class Diffuse(Lobe):
     prefix = "diffuse"
+    role = "diffuse"
     amplitude = RHO_D
 
     def spec(self):

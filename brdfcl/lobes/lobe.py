@@ -50,12 +50,30 @@ class Emitter:
             self.jac[ch].setdefault(col, []).append(expr)
 
 
+ROLES = ("diffuse", "diffraction", "reflection")
+"""What a lobe stands for.  Analysis, lobe selection and the peak constraint ask for lobes by
+role (``Model.lobes_with_role``), never by name or kind."""
+
+
 class Lobe:
-    """Base for the three lobes.  ``prefix`` names its parameters (``ct.alpha``)."""
+    """Base for the lobes.  ``prefix`` names its parameters (``ct.alpha``); ``role`` is one of
+    ROLES.  The class's ``prefix`` is its kind's; a model holding a kind more than once gives
+    the second ``ct2``, the third ``ct3``, ... (``Model`` sets the instance's ``prefix``)."""
 
     prefix: str
+    role: str
     amplitude: Param
     terms: tuple[Term, ...] = ()
+
+    @property
+    def kind(self) -> str:
+        """The kind's prefix (``ct`` for every Cook-Torrance lobe, also for one named ``ct2``)."""
+        return type(self).prefix
+
+    @property
+    def tag(self) -> str:
+        """Suffix that tells repeated lobes of one kind apart in C names ('' for the first)."""
+        return self.prefix[len(self.kind):]
 
     def spec(self) -> str:
         """The lobe's part of a model string (``ggx:smith:schlick``)."""

@@ -24,7 +24,19 @@ INCIDENCE_DEG = (0.0, 30.0, 60.0, 75.0)
 PLANES = ((None, "in the plane of incidence"), (90.0, r"$\phi_o - \phi_i$ = 90 deg"),
           (135.0, r"$\phi_o - \phi_i$ = 135 deg"))
 LOBE_STYLE = {"diffuse": ("diffuse", "tab:orange"), "diffraction": ("diffraction", "tab:purple"),
-              "ct": ("Cook-Torrance", "tab:blue")}
+              "reflection": ("Cook-Torrance", "tab:blue")}
+"""Label and colour of a lobe, by role (brdfcl.lobes.lobe.ROLES)."""
+
+
+def lobe_style(model, lobe):
+    """(label, colour) of one of ``model``'s lobes: its role's; where the model holds several lobes
+    of that role, the label names the lobe's prefix and the colour is the role's for the first only."""
+    label, color = LOBE_STYLE.get(lobe.role, (lobe.prefix, None))
+    same = model.lobes_with_role(lobe.role)
+    if len(same) > 1:
+        label = f"{label} ({lobe.prefix})"
+        color = color if lobe is same[0] else None
+    return label, color
 CHANNELS = ("R", "G", "B")
 _POLAR = r" (polar: angle $\theta_o$ from the normal, up; radius log)"
 DECADES = 9                       # y range: the largest value down to this many decades
@@ -52,7 +64,7 @@ def only_lobes(model, values, keep):
 
 def slice_values(table, model, values, theta_i_deg, theta_o_deg, dphi_deg=None, lobes=False):
     """BRDF x cos(theta_o) (3, n) on one slice: {"measured", "fitted"} and, with ``lobes``,
-    one entry per lobe of the model (its prefix: diffuse, diffraction, ct)."""
+    one entry per lobe of the model (its prefix: diffuse, diffraction, ct, ct2, ...)."""
     wi, wo = slice_directions(theta_i_deg, theta_o_deg, dphi_deg)
     cos = wo[:, 2]
     cells = Cells.from_directions(wi, wo)
@@ -158,7 +170,7 @@ def figure_lobes(path, name, table, model, values, polar=False):
             _measured(ax, polar, to, cv["measured"][c], "0.45", label="measured (table)")
             _plot(ax, polar, to, cv["fitted"][c], color="k", lw=1.2, label="fitted, all lobes")
             for lb in model.lobes:
-                label, color = LOBE_STYLE.get(lb.prefix, (lb.prefix, None))
+                label, color = lobe_style(model, lb)
                 _plot(ax, polar, to, cv[lb.prefix][c], "--", color=color, lw=1.4, label=label)
             ax.set_title(rf"{CHANNELS[c]}, $\theta_i$ = {ti:.0f} deg", fontsize=10)
             _light(ax, polar, ti, "0.6")
