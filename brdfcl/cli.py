@@ -21,6 +21,8 @@ def cmd_info(args):
     import pyopencl as cl
 
     from .device import all_devices, describe_device, has_fp64, pick_device
+    from .width import forced_width
+    forced_width(args.vector_width)             # a bad BRDFCL_VECTOR_WIDTH: one line, exit 2
     print(f"brdfcl {__version__}, pyopencl {cl.VERSION_TEXT}")
     for i, (p, d) in enumerate(all_devices()):
         for line in describe_device(i, p, d):
@@ -124,7 +126,7 @@ def cmd_fit_all(args):
           + (f", report {report.pages}" if report.pages else ""))
     for r in failed:
         print(f"failed: {r.name}: {r.status}", file=sys.stderr)
-    for why in report.skipped.values():
+    for why in report.skipped.values() if args.quiet else ():     # else logged as they happened
         print(f"skipped: {why}", file=sys.stderr)
     return 0 if report.ok else 1
 
@@ -168,6 +170,8 @@ def cmd_params(args):
     from .model import Model
     m = Model(args.model)
     print(f"model {m.spec}: {m.n_params} parameters")
+    print("lobes: " + ", ".join(f"{lb.prefix}.* = {lb.spec()} ({lb.role})" for lb in m.lobes)
+          + "; a kind's second lobe is prefixed ct2 (diffuse2, diffraction2), its third ct3, ...")
     print(f"{'name':24s} {'lo':>9s} {'hi':>9s} {'default':>9s} {'search':>17s} {'space':>5s}  unit  meaning")
     for s in m.slots:
         p = s.param
@@ -187,13 +191,14 @@ def add_fit_arguments(p):
     LMOptions' own: a flag that is not given is absent from the parsed arguments, and its help
     shows the field's default."""
     from .fit import GLOBAL_METHODS, FitOptions
-    from .metrics import METRICS
+    from .metrics import IMPLEMENTED_METRICS, METRICS
     d = FitOptions()
     cutoff = "none" if d.cutoff_deg is None else f"{d.cutoff_deg:g}"
     real = {"float": "float32", "double": "float64"}.get(d.real, d.real)
     opt = functools.partial(p.add_argument, default=argparse.SUPPRESS)    # absent unless given
     opt("--model", help=f"model string (default {d.model})")
-    opt("--metric", choices=METRICS, help=f"fit metric (default {d.metric})")
+    opt("--metric", choices=METRICS, help=f"fit metric (default {d.metric}); "
+        + "; ".join(f"{m.name}: {m.doc}" for m in IMPLEMENTED_METRICS.values()))
     opt("--no-cos", dest="cosw", action="store_false",
         help="no cos(theta_i) factor in the residual")
     opt("--cutoff", type=float,

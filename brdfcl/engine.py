@@ -24,7 +24,7 @@ from .geometry import DEFAULT_CUTOFF_DEG, table_geometry
 from .lobes.cells import Cells
 from .metrics import METRICS
 from .model import Model
-from .program import KERNELS, ProgramError, build, repair_pocl_cache
+from .program import KERNELS, ProgramError, build, crash_guard, repair_pocl_cache
 from .width import is_cpu
 
 _log = logging.getLogger("brdfcl")
@@ -171,20 +171,21 @@ class Engine:
             return _PROGRAMS[key]
         repair_pocl_cache(self.platform, log=_log.warning)
         failures = []
-        for attempt in range(2):
-            try:
-                program, self._kernels = build(self.ctx, self.device, self.source, attempt)
-            except ProgramError as e:
-                failures.append(str(e))
-                continue
-            result = selftest.check(self) if verify else None
-            if result is None or result.ok:
-                if failures:
-                    _log.warning(f"brdfcl: rebuilt the {self.model.spec} program on {self.device.name}: "
-                                 f"the cached build failed ({failures[0]})")
-                _PROGRAMS[key] = (program, result)
-                return _PROGRAMS[key]
-            failures.append(f"self-test {result.detail}")
+        with crash_guard(self.source, self.device, log=_log.warning) as first:
+            for attempt in (first, first + 1):
+                try:
+                    program, self._kernels = build(self.ctx, self.device, self.source, attempt)
+                except ProgramError as e:
+                    failures.append(str(e))
+                    continue
+                result = selftest.check(self) if verify else None
+                if result is None or result.ok:
+                    if failures:
+                        _log.warning(f"brdfcl: rebuilt the {self.model.spec} program on {self.device.name}: "
+                                     f"the cached build failed ({failures[0]})")
+                    _PROGRAMS[key] = (program, result)
+                    return _PROGRAMS[key]
+                failures.append(f"self-test {result.detail}")
         hint = (f"; try a narrower --vector-width (or {width.ENV}) than {self.opt.vw}"
                 if self.opt.vw > 1 else "")
         raise ProgramError(f"the {self.model.spec} program ({self.opt.real}, vector width {self.opt.vw}) "

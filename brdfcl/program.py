@@ -11,9 +11,12 @@ fails the caller's check, is built again under a different cache key.
 """
 from __future__ import annotations
 
+import hashlib
+import json
 import os
 import shutil
 import struct
+from contextlib import contextmanager
 from pathlib import Path
 
 import pyopencl as cl
@@ -119,6 +122,69 @@ def _sound(path: Path) -> bool:
     return sound_bitcode(path) if path.suffix == ".bc" else sound_elf(path)
 
 
+def cache_dir() -> Path:
+    """brdfcl's own cache: ``BRDFCL_CACHE_DIR``, else ``$XDG_CACHE_HOME/brdfcl`` or ``~/.cache/brdfcl``."""
+    base = os.environ.get("BRDFCL_CACHE_DIR")
+    if not base:
+        xdg = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+        base = os.path.join(xdg, "brdfcl")
+    return Path(base)
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OSError):
+        return True
+    return True
+
+
+@contextmanager
+def crash_guard(source: str, device, log=None):
+    """Yields the cache-key attempt to build ``source`` with.  A marker file says this process is
+    building and testing the program; a marker left by a process that died there (PoCL aborts
+    the whole process on some broken cache entries, which no check in Python can catch) moves
+    this program to the next cache key for good, so one crash does not break every later run."""
+    key = hashlib.sha1(f"{device.name}\0{device.driver_version}\0{source}".encode()).hexdigest()[:20]
+    d = cache_dir() / "building"
+    salts = cache_dir() / "program-keys.json"
+    try:
+        d.mkdir(parents=True, exist_ok=True)
+        attempt = int(_read_json(salts).get(key, 0))
+        dead = [m for m in d.glob(f"{key}.*") if m.suffix[1:].isdigit() and not _alive(int(m.suffix[1:]))]
+        if dead:
+            attempt += 1
+            table = _read_json(salts)
+            table[key] = attempt
+            tmp = salts.with_name(f".{salts.name}.tmp{os.getpid()}")
+            tmp.write_text(json.dumps(table, indent=1))
+            os.replace(tmp, salts)
+            for m in dead:
+                m.unlink(missing_ok=True)
+            if log:
+                log(f"brdfcl: a run died building or testing this program on {device.name}; "
+                    f"building it under a new PoCL cache key")
+        marker = d / f"{key}.{os.getpid()}"
+        marker.write_text("")
+    except OSError:                     # no writable cache: build without the guard
+        yield 0
+        return
+    try:
+        yield attempt
+    finally:
+        marker.unlink(missing_ok=True)
+
+
+def _read_json(path: Path) -> dict:
+    try:
+        d = json.loads(path.read_text())
+        return d if isinstance(d, dict) else {}
+    except (OSError, ValueError):
+        return {}
+
+
 def repair_pocl_cache(platform, log=None) -> list:
     """Remove cache entries whose program bitcode or kernel libraries are incomplete (PoCL
     rebuilds them); once per process and cache.  Returns the removed entry folders."""
@@ -133,18 +199,21 @@ def repair_pocl_cache(platform, log=None) -> list:
             continue
         shutil.rmtree(entry, ignore_errors=True)
         removed.append(entry)
-        if log:
-            log(f"brdfcl: removed a broken PoCL kernel-cache entry ({path.name}): {entry}")
+    if removed and log:
+        log(f"brdfcl: removed a broken PoCL kernel-cache entr{'y' if len(removed) == 1 else f'ies ({len(removed)})'}"
+            f" from {root}; PoCL compiles them again")
     return removed
 
 
 def build(ctx, device, source: str, attempt: int = 0):
     """(program, {name: kernel}) for a source; ``attempt`` > 0 builds it under a new cache key."""
+    options = list(BUILD_OPTIONS)
     if attempt:
-        # PoCL's cache key is a hash of the source: a marker line gives a fresh, separate entry.
-        source = f"/* brdfcl: rebuilt past a broken cache entry, attempt {attempt} */\n{source}"
+        # PoCL's cache key hashes the preprocessed source (comments are gone) and the build
+        # options: a define in the options gives a fresh, separate entry.
+        options.append(f"-DBRDFCL_CACHE_KEY={attempt}")
     try:
-        program = cl.Program(ctx, source).build(options=BUILD_OPTIONS, devices=[device])
+        program = cl.Program(ctx, source).build(options=options, devices=[device])
         kernels = {k: cl.Kernel(program, k) for k in KERNELS}
     except cl.Error as e:
         raise ProgramError(f"OpenCL build failed on {device.name}: {_what(e)}") from None

@@ -28,7 +28,7 @@ import pyopencl as cl
 
 from ._version import __version__
 from .codegen import kernel_sources_hash
-from .program import ABI_WARNING, ProgramError
+from .program import ABI_WARNING, ProgramError, cache_dir
 
 ENV = "BRDFCL_VECTOR_WIDTH"
 WIDTHS = (1, 2, 4, 8, 16)
@@ -80,14 +80,6 @@ def candidates(device, real) -> list:
         return [1]
     top = preferred(device, real)
     return [w for w in reversed(WIDTHS) if w <= top]
-
-
-def cache_dir() -> Path:
-    base = os.environ.get("BRDFCL_CACHE_DIR")
-    if not base:
-        xdg = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-        base = os.path.join(xdg, "brdfcl")
-    return Path(base)
 
 
 def _cpu_flags() -> str:
@@ -184,10 +176,10 @@ def choose(platform, device, real, explicit=None, log=None, probe_fn=None) -> Wi
         return WidthChoice(widths[0], "not a CPU: one cell per work-item", "")
     path = cache_dir() / "vector-widths.json"
     key = device_key(platform, device, real)
-    hit = _load(path).get(key)
+    hit = _entry(_load(path), key)
     if hit is None:
         with _locked(path):
-            hit = _load(path).get(key)            # another process may have probed meanwhile
+            hit = _entry(_load(path), key)        # another process may have probed meanwhile
             if hit is None:
                 hit = _probe_all(platform, device, real, widths, log, probe_fn or probe)
                 try:
@@ -196,6 +188,14 @@ def choose(platform, device, real, explicit=None, log=None, probe_fn=None) -> Wi
                     if log:
                         log(f"could not cache the vector width in {path}: {e}")
     return WidthChoice(hit["width"], hit["reason"], hit["selftest"])
+
+
+def _entry(table: dict, key: str) -> dict | None:
+    """A cached decision, or None when it is missing or not one this module wrote (probe again)."""
+    e = table.get(key)
+    ok = (isinstance(e, dict) and e.get("width") in WIDTHS and isinstance(e.get("reason"), str)
+          and isinstance(e.get("selftest"), str))
+    return e if ok else None
 
 
 def _probe_all(platform, device, real, widths, log, probe_fn) -> dict:

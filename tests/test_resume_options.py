@@ -1,5 +1,6 @@
 """Input data is read-only; results record the options that made them, and resuming respects them."""
 import csv
+import hashlib
 import json
 import os
 import subprocess
@@ -25,13 +26,15 @@ def cli(*args, **kw):
 
 
 def snapshot(folder):
-    """Every file under folder -> (bytes, mtime_ns); a symlink: its target's bytes, its own mtime."""
+    """Every file under folder -> (sha1 of its bytes, mtime_ns); a symlink: its target, its own mtime.
+    Hashes, not bytes: a failing comparison must not print whole MERL files."""
     out = {}
     for root, _, files in os.walk(folder):
         for f in files:
             p = os.path.join(root, f)
             st = os.lstat(p)
-            out[p] = (Path(p).read_bytes() if os.path.isfile(p) else os.readlink(p), st.st_mtime_ns)
+            what = hashlib.sha1(Path(p).read_bytes()).hexdigest() if os.path.isfile(p) else os.readlink(p)
+            out[p] = (what, st.st_mtime_ns)
     return out
 
 
