@@ -166,6 +166,13 @@ def cmd_export(args):
     return 0
 
 
+def cmd_terms(args):
+    """Every registered term as Markdown (docs/terms.md is this output)."""
+    from .lobes.catalogue import terms_markdown
+    print(terms_markdown())
+    return 0
+
+
 def cmd_params(args):
     from .model import Model
     m = Model(args.model)
@@ -294,6 +301,9 @@ def build_parser():
     p.add_argument("--merl", metavar="PATH", help="write the fitted model tabulated as a MERL .binary")
     p.add_argument("--device", default=None, help="OpenCL device for --merl (default: PoCL CPU)")
     p.set_defaults(func=cmd_export)
+
+    p = sub.add_parser("terms", help="every D, G, F and PSD term with its parameters and source (Markdown)")
+    p.set_defaults(func=cmd_terms)
 
     p = sub.add_parser("params", help="list a model's parameters, bounds and units")
     p.add_argument("model", nargs="?", default=FitOptions().model, help="model string (default %(default)s)")

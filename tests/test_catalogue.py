@@ -1,0 +1,27 @@
+"""docs/terms.md is the term registry's own table, so the documentation cannot drift."""
+import subprocess
+import sys
+from pathlib import Path
+
+from brdfcl.lobes.catalogue import terms_markdown
+from brdfcl.lobes.spec import REGISTRY
+
+DOC = Path(__file__).resolve().parents[1] / "docs" / "terms.md"
+
+
+def test_docs_terms_page_is_current():
+    assert DOC.read_text() == terms_markdown() + "\n", "docs/terms.md is stale: brdfcl terms > docs/terms.md"
+
+
+def test_every_registered_term_is_listed_with_its_parameters():
+    text = terms_markdown()
+    for kind in REGISTRY.values():
+        for t in kind.values():
+            assert f"| `{t.name}` |" in text and f"kernels/{t.kernel}" in text
+            for p in t.params:
+                assert f"`{p.name}`" in text
+
+
+def test_cli_prints_it():
+    r = subprocess.run([sys.executable, "-m", "brdfcl.cli", "terms"], capture_output=True, text=True)
+    assert r.returncode == 0 and r.stdout == terms_markdown() + "\n"
