@@ -4,9 +4,15 @@ skip with a reason when it is absent.  Proxy tables are generated once into BRDF
 import os
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 import pytest
+
+# brdfcl's own cache (vector widths chosen by probing, build markers) lives in a folder of this
+# test session, inherited by the CLI subprocesses: tests neither depend on nor leave state in
+# the user's ~/.cache/brdfcl.
+os.environ.setdefault("BRDFCL_CACHE_DIR", tempfile.mkdtemp(prefix="brdfcl-test-cache-"))
 
 ROOT = Path(__file__).resolve().parents[1]
 SHARED = Path(os.environ.get("BRDFCL_SHARED", ROOT.parent / "shared"))
