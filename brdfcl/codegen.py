@@ -35,7 +35,8 @@ def kernel_dir() -> Path:
 
 
 @cache
-def _read(rel: str) -> str:
+def read_kernel(rel: str) -> str:
+    """A kernel source file (relative to kernel_dir()), read once per process."""
     return (kernel_dir() / rel).read_text()
 
 
@@ -90,13 +91,14 @@ def emit(model: Model) -> Emitter:
     return em
 
 
+def kernel_files(model: Model) -> list:
+    """The term source files a model's program includes, each once, in the order first used."""
+    return list(dict.fromkeys(t.kernel for lb in model.lobes for t in lb.terms))
+
+
 def render(model: Model, opt: KernelOptions) -> str:
     em = emit(model)
-    files = []
-    for lb in model.lobes:
-        for t in lb.terms:
-            if t.kernel not in files:
-                files.append(t.kernel)
+    files = kernel_files(model)
     cols = set()
     pairs = jtj_pairs(model)
     for ch in range(3):
@@ -109,7 +111,7 @@ def render(model: Model, opt: KernelOptions) -> str:
         metric=opt.metric, cosw=opt.cosw, metric_g=fit_g, metric_dg=fit_dg,
         reported=[(m.name, m.c("xp")[0], m.c("xm")[0]) for m in IMPLEMENTED_METRICS.values()],
         real_v=opt.real + vec, cond_v=("int" if opt.real == "float" else "long") + vec,
-        common=_read("common.cl"), sources=[_read(f) for f in files],
+        common=read_kernel("common.cl"), sources=[read_kernel(f) for f in files],
         slots=model.slots, n_slots=model.n_params,
         consts=["K_" + k.replace(".", "_") for k in model.const_names],
         n_prm=model.n_params + len(model.const_names), n_free=model.n_free,

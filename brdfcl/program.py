@@ -152,15 +152,11 @@ def crash_guard(source: str, device, log=None):
     salts = cache_dir() / "program-keys.json"
     try:
         d.mkdir(parents=True, exist_ok=True)
-        attempt = int(_read_json(salts).get(key, 0))
+        attempt = int(read_json(salts).get(key, 0))
         dead = [m for m in d.glob(f"{key}.*") if m.suffix[1:].isdigit() and not _alive(int(m.suffix[1:]))]
         if dead:
             attempt += 1
-            table = _read_json(salts)
-            table[key] = attempt
-            tmp = salts.with_name(f".{salts.name}.tmp{os.getpid()}")
-            tmp.write_text(json.dumps(table, indent=1))
-            os.replace(tmp, salts)
+            update_json(salts, key, attempt)
             for m in dead:
                 m.unlink(missing_ok=True)
             if log:
@@ -177,12 +173,22 @@ def crash_guard(source: str, device, log=None):
         marker.unlink(missing_ok=True)
 
 
-def _read_json(path: Path) -> dict:
+def read_json(path: Path) -> dict:
+    """A JSON object of brdfcl's cache; {} when it is missing or not one."""
     try:
         d = json.loads(path.read_text())
         return d if isinstance(d, dict) else {}
     except (OSError, ValueError):
         return {}
+
+
+def update_json(path: Path, key: str, value) -> None:
+    """Set one key of a JSON object in brdfcl's cache, replacing the file atomically."""
+    d = read_json(path)
+    d[key] = value
+    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
+    tmp.write_text(json.dumps(d, indent=1, sort_keys=True))
+    os.replace(tmp, path)
 
 
 def repair_pocl_cache(platform, log=None) -> list:

@@ -28,7 +28,7 @@ import pyopencl as cl
 
 from ._version import __version__
 from .codegen import kernel_sources_hash
-from .program import ABI_WARNING, ProgramError, cache_dir
+from .program import ABI_WARNING, ProgramError, cache_dir, read_json, update_json
 
 ENV = "BRDFCL_VECTOR_WIDTH"
 WIDTHS = (1, 2, 4, 8, 16)
@@ -100,14 +100,6 @@ def device_key(platform, device, real) -> str:
     return hashlib.sha1("\n".join(parts).encode()).hexdigest()[:20]
 
 
-def _load(path: Path) -> dict:
-    try:
-        d = json.loads(path.read_text())
-        return d if isinstance(d, dict) else {}
-    except (OSError, ValueError):
-        return {}
-
-
 @contextmanager
 def _locked(path: Path):
     """Serialise probing between processes (Dask workers start together)."""
@@ -119,14 +111,6 @@ def _locked(path: Path):
         except (ImportError, OSError):
             pass
         yield
-
-
-def _store(path: Path, key: str, entry: dict):
-    d = _load(path)
-    d[key] = entry
-    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
-    tmp.write_text(json.dumps(d, indent=1, sort_keys=True))
-    os.replace(tmp, path)
 
 
 def device_selector(platform, device) -> str:
@@ -176,14 +160,14 @@ def choose(platform, device, real, explicit=None, log=None, probe_fn=None) -> Wi
         return WidthChoice(widths[0], "not a CPU: one cell per work-item", "")
     path = cache_dir() / "vector-widths.json"
     key = device_key(platform, device, real)
-    hit = _entry(_load(path), key)
+    hit = _entry(read_json(path), key)
     if hit is None:
         with _locked(path):
-            hit = _entry(_load(path), key)        # another process may have probed meanwhile
+            hit = _entry(read_json(path), key)        # another process may have probed meanwhile
             if hit is None:
                 hit = _probe_all(platform, device, real, widths, log, probe_fn or probe)
                 try:
-                    _store(path, key, hit)
+                    update_json(path, key, hit)
                 except OSError as e:
                     if log:
                         log(f"could not cache the vector width in {path}: {e}")

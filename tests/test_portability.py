@@ -130,14 +130,17 @@ RUN = ("import numpy as np; from brdfcl.engine import Engine; from brdfcl.engine
        "print(e.loss(cs, e.model.defaults(), [0])[0], e.self_test.ok)")
 
 
+def _runner(tmp_path, device):
+    """RUN in a fresh process with its own PoCL and brdfcl caches under tmp_path."""
+    env = dict(os.environ, POCL_CACHE_DIR=str(tmp_path / "pocl"), BRDFCL_DEVICE=device,
+               BRDFCL_CACHE_DIR=str(tmp_path / "brdfcl"))
+    return lambda: subprocess.run([sys.executable, "-c", RUN], capture_output=True, text=True, env=env, timeout=600)
+
+
 @pytest.mark.parametrize("device", POCL)
 @pytest.mark.parametrize("damage", list(CORRUPT))
 def test_a_broken_pocl_cache_does_not_break_the_next_run(tmp_path, device, damage):
-    env = dict(os.environ, POCL_CACHE_DIR=str(tmp_path / "pocl"), BRDFCL_DEVICE=device,
-               BRDFCL_CACHE_DIR=str(tmp_path / "brdfcl"))
-
-    def run():
-        return subprocess.run([sys.executable, "-c", RUN], capture_output=True, text=True, env=env, timeout=600)
+    run = _runner(tmp_path, device)
     first = run()
     assert first.returncode == 0, first.stderr[-2000:]
     assert list((tmp_path / "pocl").rglob("*.so")), "PoCL wrote no kernel cache here"
@@ -160,11 +163,7 @@ def _scramble_middle(d):
 
 @pytest.mark.parametrize("device", POCL)
 def test_a_crash_on_a_cache_entry_breaks_one_run_at_most(tmp_path, device):
-    env = dict(os.environ, POCL_CACHE_DIR=str(tmp_path / "pocl"), BRDFCL_DEVICE=device,
-               BRDFCL_CACHE_DIR=str(tmp_path / "brdfcl"))
-
-    def run():
-        return subprocess.run([sys.executable, "-c", RUN], capture_output=True, text=True, env=env, timeout=600)
+    run = _runner(tmp_path, device)
     first = run()
     assert first.returncode == 0, first.stderr[-2000:]
     _scramble_middle(tmp_path / "pocl")

@@ -19,6 +19,7 @@ from brdfcl.run import fit_all
 from brdfcl.selection import variants
 from brdfcl.synth import demo_values, tabulate
 from tests.test_engine import _random_values, _reference
+from tests.test_peak_order import assert_residual_jacobian
 from tests.test_reference import random_cells
 
 TWO = "diffuse+ggx+ggx"
@@ -184,13 +185,7 @@ def test_peak_constraint_and_analysis_ask_roles():
     scale = np.ones(4)
     r, J = po.residual(V, scale)
     assert (r > 0).sum() >= 4
-    for j, col in enumerate(m.free_index):
-        e = 1e-6 * max(abs(V[0, col]), 1e-3)
-        Vp, Vm = V.copy(), V.copy()
-        Vp[:, col] += e
-        Vm[:, col] -= e
-        fd = (po.residual(Vp, scale)[0] - po.residual(Vm, scale)[0]) / (2 * e)
-        assert np.allclose(fd, J[:, :, j], rtol=1e-5, atol=1e-7 * np.abs(J).max()), m.names[col]
+    assert_residual_jacobian(po, m, V, scale, J)
     # with one lobe of each role listed in any order, the same numbers as the usual order
     a, b = Model("diffuse+diffraction+ggx"), Model("ggx+diffraction+diffuse")
     va = a.defaults()
