@@ -29,10 +29,10 @@ import numpy as np
 import pyopencl as cl
 
 from brdfcl import __version__
-from brdfcl.engine import Engine, select_cells
-from brdfcl.geometry import table_geometry
-from brdfcl.merl import list_database, read_merl
-from brdfcl.metrics import loss_grad
+from brdfcl.data.geometry import table_geometry
+from brdfcl.data.merl import list_database, read_merl
+from brdfcl.device.engine import Engine, select_cells
+from brdfcl.model.metrics import loss_grad
 
 HERE = Path(__file__).resolve().parent
 SHARED = HERE.parent.parent / "shared"
@@ -110,7 +110,7 @@ def roofline(eng, repeat):
 
 def pocl_devices():
     """Flat device indices (brdfcl info) of every PoCL CPU device present."""
-    from brdfcl.device import all_devices
+    from brdfcl.device.platforms import all_devices
     return [str(i) for i, (p, d) in enumerate(all_devices())
             if "portable computing" in p.name.lower() and d.type & cl.device_type.CPU]
 
@@ -119,7 +119,7 @@ def compare(args, paths, n_mat):
     """Loss + gradient throughput of every PoCL build present at the width brdfcl chooses and at
     the narrower safe widths (8 floats, 4 doubles), measured round-robin in one run: each round
     times every configuration once, so machine noise hits them alike; medians over rounds."""
-    from brdfcl.engine import extract
+    from brdfcl.device.engine import extract
     idx = select_cells()
     configs = []
     for dev in pocl_devices():
@@ -260,7 +260,7 @@ def main(argv=None):
              f"Data: MERL-proxy ({n_mat} materials from {data}), {n_cells} cells per material "
              f"(80 degree cut-off). Model `{model.spec}` ({model.n_free} free parameters), metric "
              f"`{args.metric}`. Device: {eng32.device.name} ({eng32.device.platform.version}), "
-             f"vector width {eng32.opt.vw} float / {eng64.opt.vw} double (chosen by brdfcl.width). "
+             f"vector width {eng32.opt.vw} float / {eng64.opt.vw} double (chosen by brdfcl.device.width). "
              f"brdfcl {__version__}. Medians of {args.repeat} runs; numpy timed on {k} materials.", "",
              "| implementation | materials | time per evaluation of all of them (s) | "
              "material-cells/s | speed-up vs numpy float64 |", "|---|---|---|---|---|"]

@@ -27,11 +27,11 @@ from pathlib import Path
 import numpy as np
 
 from brdfcl import __version__
-from brdfcl.fit import FitOptions, Fitter, load_batch
-from brdfcl.geometry import table_geometry
-from brdfcl.merl import read_merl
-from brdfcl.metrics import errors, transform
-from brdfcl.model import DEFAULT_MODEL, Model
+from brdfcl.data.geometry import table_geometry
+from brdfcl.data.merl import read_merl
+from brdfcl.model.compose import DEFAULT_MODEL, Model
+from brdfcl.model.metrics import errors, transform
+from brdfcl.optim.fit import FitOptions, Fitter, load_batch
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_eval import proxy_dir  # noqa: E402
@@ -77,7 +77,7 @@ def run_brdfcl(paths, setting, kw, model, metric):
 
 
 def scipy_problem(model, table, idx, metric, dtype=np.float64):
-    from brdfcl.lobes.cells import Cells
+    from brdfcl.model.lobes.cells import Cells
     g = table_geometry()
     cells = Cells.from_geometry(g, idx).astype(dtype)
     m = table.brdf()[:, idx].astype(dtype)
@@ -364,7 +364,7 @@ def report(recs, batch_seconds, paths, all_paths, args, out):
                   f"{len(paths)} materials in one batch."]
         db = args.database_seconds
         if db is None and not args.all:
-            from brdfcl.run import fit_all
+            from brdfcl.app.run import fit_all
             t = time.perf_counter()
             fit_all(all_paths, None, FitOptions(model=args.model, metric=args.metric))
             db = time.perf_counter() - t

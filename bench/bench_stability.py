@@ -20,12 +20,12 @@ from pathlib import Path
 
 import numpy as np
 
-from brdfcl.engine import Engine, select_cells
-from brdfcl.fit import FitOptions, Fitter, load_batch
-from brdfcl.geometry import table_geometry
-from brdfcl.merl import read_merl, write_merl
-from brdfcl.model import DEFAULT_MODEL, Model
-from brdfcl.synth import demo_values, tabulate
+from brdfcl.data.geometry import table_geometry
+from brdfcl.data.merl import read_merl, write_merl
+from brdfcl.device.engine import Engine, select_cells
+from brdfcl.model.compose import DEFAULT_MODEL, Model
+from brdfcl.model.synth import demo_values, tabulate
+from brdfcl.optim.fit import FitOptions, Fitter, load_batch
 
 HERE = Path(__file__).resolve().parent
 PROXY = ["chrome", "specular-black-phenolic", "aluminium", "white-diffuse-bball", "black-soft-plastic"]

@@ -1,23 +1,23 @@
 """brdfcl: fit diffuse + diffraction + Cook-Torrance to measured BRDF databases with OpenCL."""
-from ._version import __version__  # noqa: E402
-from .merl import MerlError, MerlTable, read_database, read_merl, write_merl  # noqa: E402
-from .model import DEFAULT_MODEL, Model, ModelError  # noqa: E402
+from brdfcl._version import __version__  # noqa: E402
+from brdfcl.data.merl import MerlError, MerlTable, read_database, read_merl, write_merl  # noqa: E402
+from brdfcl.model.compose import DEFAULT_MODEL, Model, ModelError  # noqa: E402
 
 
 def __getattr__(name):
     # The OpenCL-backed API is imported on first use so that `import brdfcl` stays light.
     if name in ("fit_all", "RunReport"):
-        from . import run
+        from brdfcl.app import run
         return getattr(run, name)
     if name in ("FitOptions", "FitResult", "Fitter", "fit_tables"):
-        from . import fit
+        from brdfcl.optim import fit
         return getattr(fit, name)
     if name == "Engine":
-        from .engine import Engine
+        from brdfcl.device.engine import Engine
         return Engine
     import importlib.util
     if not name.startswith("_") and importlib.util.find_spec(f"{__name__}.{name}") is not None:
-        return importlib.import_module(f"{__name__}.{name}")    # submodules: brdfcl.cluster.make_client
+        return importlib.import_module(f"{__name__}.{name}")    # submodules: brdfcl.app.cluster.make_client
     raise AttributeError(f"module 'brdfcl' has no attribute '{name}'")
 
 

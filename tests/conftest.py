@@ -44,7 +44,7 @@ def proxy_pair():
 
 @pytest.fixture(scope="session")
 def demo_db(tmp_path_factory):
-    from brdfcl.synth import write_synth
+    from brdfcl.model.synth import write_synth
     d = tmp_path_factory.mktemp("demo")
     write_synth(d, log=None)
     return d

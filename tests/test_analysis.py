@@ -6,11 +6,11 @@ import sys
 import numpy as np
 import pytest
 
-from brdfcl.analyze import analyze
-from brdfcl.gradient_test import gradient_test, line_angle
-from brdfcl.model import Model
-from brdfcl.synth import demo_values, tabulate
-from brdfcl.wavelength import wavelength_check
+from brdfcl.analysis.gradient import gradient_test, line_angle
+from brdfcl.analysis.wavelength import wavelength_check
+from brdfcl.app.analyze import analyze
+from brdfcl.model.compose import Model
+from brdfcl.model.synth import demo_values, tabulate
 
 
 def _table(spec, params):
@@ -54,7 +54,7 @@ def test_specular_lobe_is_not_diffraction():
 
 def test_diffraction_halo_around_a_specular_peak_passes():
     """The talk's picture: a CT peak and a diffraction halo (the Fresnel slope is read off the ridge)."""
-    from brdfcl.synth import DEMO
+    from brdfcl.model.synth import DEMO
     g = gradient_test(_table(*DEMO["synth-smooth-metal"]))
     assert g.n_cells.sum() > 1000 and g.mean_score > 0.9
 
@@ -95,12 +95,12 @@ def test_fit_all_select_lobes(demo_db, tmp_path):
     d.mkdir()
     for p in paths:
         (d / p.split("/")[-1]).symlink_to(p)
-    r = subprocess.run([sys.executable, "-m", "brdfcl.cli", "fit-all", str(d), "--out", str(tmp_path / "o"),
+    r = subprocess.run([sys.executable, "-m", "brdfcl.app.cli", "fit-all", str(d), "--out", str(tmp_path / "o"),
                         "--select-lobes", "--quiet"], capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
     rows = {row["material"]: row for row in csv.DictReader(open(tmp_path / "o" / "summary.csv"))}
     assert "diffraction" not in rows["synth-smooth-plastic"]["model"]
     assert "diffraction" in rows["synth-smooth-metal"]["model"]
-    r = subprocess.run([sys.executable, "-m", "brdfcl.cli", "fit-all", str(d), "--out", str(tmp_path / "o"),
+    r = subprocess.run([sys.executable, "-m", "brdfcl.app.cli", "fit-all", str(d), "--out", str(tmp_path / "o"),
                         "--select-lobes", "--quiet"], capture_output=True, text=True)
     assert "2 already done" in r.stdout

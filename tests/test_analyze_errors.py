@@ -5,10 +5,10 @@ import sys
 
 import pytest
 
-from brdfcl.analyze import Analyses, analyze
-from brdfcl.merl import FILE_SIZE, MerlError
+from brdfcl.app.analyze import Analyses, analyze
+from brdfcl.data.merl import FILE_SIZE, MerlError
 
-CLI = [sys.executable, "-m", "brdfcl.cli"]
+CLI = [sys.executable, "-m", "brdfcl.app.cli"]
 GOOD = "synth-fabric"
 FAST = ["--quiet", "--no-figures", "--free-peak"]     # --free-peak: three fits per material, not five
 
@@ -99,11 +99,11 @@ def test_unwritable_out_is_one_line_before_any_work(demo_db, tmp_path, monkeypat
     line = one_error_line(cli("analyze", demo_db, "--out", tmp_path / "o", "--quiet"))
     assert "cannot be written" in line and str(tmp_path / "o" / "figures") in line
 
-    import brdfcl.analyze
+    import brdfcl.app.analyze
 
     def no_fitting(*a, **kw):
         raise AssertionError("fitting started before the output folder was checked")
-    monkeypatch.setattr(brdfcl.analyze, "Fitter", no_fitting)
+    monkeypatch.setattr(brdfcl.app.analyze, "Fitter", no_fitting)
     with pytest.raises(OSError, match="cannot be written"):
         analyze(demo_db, tmp_path / "afile" / "sub")
 

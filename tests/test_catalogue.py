@@ -3,8 +3,8 @@ import subprocess
 import sys
 from pathlib import Path
 
-from brdfcl.lobes.catalogue import terms_markdown
-from brdfcl.lobes.spec import REGISTRY
+from brdfcl.model.lobes.catalogue import terms_markdown
+from brdfcl.model.lobes.spec import REGISTRY
 
 DOC = Path(__file__).resolve().parents[1] / "docs" / "terms.md"
 
@@ -23,5 +23,5 @@ def test_every_registered_term_is_listed_with_its_parameters():
 
 
 def test_cli_prints_it():
-    r = subprocess.run([sys.executable, "-m", "brdfcl.cli", "terms"], capture_output=True, text=True)
+    r = subprocess.run([sys.executable, "-m", "brdfcl.app.cli", "terms"], capture_output=True, text=True)
     assert r.returncode == 0 and r.stdout == terms_markdown() + "\n"

@@ -8,13 +8,13 @@ from dataclasses import dataclass, field, fields
 
 import pytest
 
-import brdfcl.fit
-from brdfcl import cli
-from brdfcl.analyze import analyze
-from brdfcl.fit import FitOptions
-from brdfcl.lm import LMOptions
-from brdfcl.run import fit_all
-from brdfcl.synth import write_synth
+import brdfcl.optim.fit
+from brdfcl.app import cli
+from brdfcl.app.analyze import analyze
+from brdfcl.app.run import fit_all
+from brdfcl.model.synth import write_synth
+from brdfcl.optim.fit import FitOptions
+from brdfcl.optim.lm import LMOptions
 
 
 def parse(*argv):
@@ -93,7 +93,7 @@ class Changed(FitOptions):
 
 
 def test_cli_follows_a_changed_default(monkeypatch, capsys):
-    monkeypatch.setattr(brdfcl.fit, "FitOptions", Changed)
+    monkeypatch.setattr(brdfcl.optim.fit, "FitOptions", Changed)
     assert_same_fields(cli.fit_options(parse("fit-all", "--demo", "--out", "o")), Changed())
     # --max-iter changes only the iterations: the rest of the default LMOptions stays
     args = parse("analyze", "--demo", "--out", "o", "--max-iter", "9")

@@ -7,8 +7,8 @@ import pytest
 
 pytest.importorskip("distributed")
 
-from brdfcl.cluster import make_client  # noqa: E402
-from brdfcl.run import fit_all  # noqa: E402
+from brdfcl.app.cluster import make_client  # noqa: E402
+from brdfcl.app.run import fit_all  # noqa: E402
 
 NAMES = ["synth-fabric", "synth-mirror", "synth-smooth-plastic", "synth-rough-metal"]
 MODEL = "diffuse+ggx"

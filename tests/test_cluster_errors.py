@@ -10,13 +10,13 @@ pytest.importorskip("distributed")
 
 import pyopencl as cl  # noqa: E402
 
-import brdfcl.cluster  # noqa: E402
-import brdfcl.fit  # noqa: E402
-from brdfcl.cluster import RemoteTraceback, WorkerError, describe_error, fit_chunk, make_client  # noqa: E402
-from brdfcl.fit import FitOptions  # noqa: E402
-from brdfcl.run import fit_all  # noqa: E402
+import brdfcl.app.cluster  # noqa: E402
+import brdfcl.optim.fit  # noqa: E402
+from brdfcl.app.cluster import RemoteTraceback, WorkerError, describe_error, fit_chunk, make_client  # noqa: E402
+from brdfcl.app.run import fit_all  # noqa: E402
+from brdfcl.optim.fit import FitOptions  # noqa: E402
 
-CLI = [sys.executable, "-m", "brdfcl.cli"]
+CLI = [sys.executable, "-m", "brdfcl.app.cli"]
 NAMES = ["synth-fabric", "synth-mirror"]
 
 
@@ -31,7 +31,7 @@ def db(demo_db, tmp_path):
 
 def pyopencl_error():
     """A real pyopencl.LogicError: its argument is an _ErrorRecord, which does not pickle."""
-    ctx = cl.Context([brdfcl.device.pick_device()[1]])
+    ctx = cl.Context([brdfcl.device.platforms.pick_device()[1]])
     try:
         cl.Buffer(ctx, cl.mem_flags.READ_ONLY, 0)
     except cl.Error as e:
@@ -48,7 +48,7 @@ def test_cli_worker_failure_is_one_line(db, tmp_path):
     assert len(lines) == 1, r.stderr                  # no Dask log records, no traceback
     line = lines[0]
     assert line.startswith("brdfcl: error: cluster: fitting ") and "failed on worker tcp://" in line
-    # one worker: two chunks of one material (brdfcl.cluster.fit_on_cluster); the first that fails is named
+    # one worker: two chunks of one material (brdfcl.app.cluster.fit_on_cluster); the first that fails is named
     assert sum(f"fitting {n} (1 material)" in line for n in NAMES) == 1
     assert "DeviceError: no OpenCL device matches 'no-such-device'" in line
     r = subprocess.run(CLI + ["--debug"] + args, capture_output=True, text=True, timeout=300)
@@ -82,8 +82,8 @@ def test_pyopencl_error_in_a_task_is_readable(db, monkeypatch):
 
     def failing_fitter(opts):
         raise e
-    monkeypatch.setattr(brdfcl.fit, "Fitter", failing_fitter)
-    monkeypatch.setattr(brdfcl.cluster, "_WORKER_FITTERS", {})
+    monkeypatch.setattr(brdfcl.optim.fit, "Fitter", failing_fitter)
+    monkeypatch.setattr(brdfcl.app.cluster, "_WORKER_FITTERS", {})
     results, skipped, failure = fit_chunk([str(db / f"{n}.binary") for n in NAMES], FitOptions())
     assert results == [] and skipped == {}
     line, tb = failure
@@ -93,13 +93,13 @@ def test_pyopencl_error_in_a_task_is_readable(db, monkeypatch):
 
 
 def test_chunk_label():
-    assert brdfcl.cluster.chunk_label(["a/x.binary", "b/y.binary"]) == "x, y"
-    assert brdfcl.cluster.chunk_label([f"m{i}.binary" for i in range(5)]) == "m0, m1, m2 and 2 more"
+    assert brdfcl.app.cluster.chunk_label(["a/x.binary", "b/y.binary"]) == "x, y"
+    assert brdfcl.app.cluster.chunk_label([f"m{i}.binary" for i in range(5)]) == "m0, m1, m2 and 2 more"
 
 
 def test_describe_error_one_line():
     assert describe_error(ValueError("first\nsecond")) == "ValueError: first [...]"
-    assert describe_error(brdfcl.device.DeviceError("no device 'x'; devices:\n[0] pocl")) == \
+    assert describe_error(brdfcl.device.platforms.DeviceError("no device 'x'; devices:\n[0] pocl")) == \
         "DeviceError: no device 'x'; devices [...]"
     assert describe_error(KeyError("k")) == "KeyError: 'k'"
 

@@ -15,8 +15,8 @@ import pytest
 
 pytest.importorskip("distributed")
 
-from brdfcl.device import DeviceError, pick_device  # noqa: E402
-from brdfcl.merl import FILE_SIZE  # noqa: E402
+from brdfcl.data.merl import FILE_SIZE  # noqa: E402
+from brdfcl.device.platforms import DeviceError, pick_device  # noqa: E402
 
 PAGE = Path(__file__).resolve().parents[1] / "docs" / "api.md"
 MATERIAL = "synth-smooth-metal"        # has a diffraction lobe: every block has something to find
@@ -26,7 +26,7 @@ def substitutions(db):
     """(as written in the page, what the test runs instead)."""
     subs = [('"merl/brass.binary"', repr(str(db / f"{MATERIAL}.binary"))),
             ('"merl/"', repr(f"{db}/")),
-            ('Client("tcp://scheduler:8786")', "brdfcl.cluster.make_client(workers=1)")]
+            ('Client("tcp://scheduler:8786")', "brdfcl.app.cluster.make_client(workers=1)")]
     try:
         pick_device("nvidia")
     except DeviceError:                 # no such GPU here: the default device
@@ -108,12 +108,12 @@ def test_api_page_examples_run(demo_db, tmp_path, monkeypatch):
 
 
 def test_submodules_are_attributes_of_a_bare_import():
-    """`import brdfcl` then `brdfcl.cluster.make_client` (as the page writes it) works in a fresh
+    """`import brdfcl` then `brdfcl.app.cluster.make_client` (as the page writes it) works in a fresh
     process, and `import brdfcl` alone loads neither Dask nor OpenCL."""
     code = ("import sys, brdfcl\n"
             "heavy = [m for m in ('dask', 'distributed', 'pyopencl') if m in sys.modules]\n"
             "assert not heavy, heavy\n"
-            "assert callable(brdfcl.cluster.make_client) and callable(brdfcl.analyze.analyze)\n"
+            "assert callable(brdfcl.app.cluster.make_client) and callable(brdfcl.app.analyze.analyze)\n"
             "try:\n    brdfcl.no_such_thing\nexcept AttributeError:\n    pass\n"
             "else:\n    raise SystemExit('no AttributeError')\n")
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)

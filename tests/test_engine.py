@@ -2,10 +2,10 @@
 import numpy as np
 import pytest
 
-from brdfcl.engine import Engine, select_cells
-from brdfcl.geometry import table_geometry
-from brdfcl.merl import read_merl
-from brdfcl.metrics import METRICS, errors, transform
+from brdfcl.data.geometry import table_geometry
+from brdfcl.data.merl import read_merl
+from brdfcl.device.engine import Engine, select_cells
+from brdfcl.model.metrics import METRICS, errors, transform
 
 SPECS = ["diffuse+diffraction+ggx",
          "diffuse+diffraction:abc:conductor+beckmann:smith-hc:dielectric",
@@ -115,7 +115,7 @@ def test_blocks_give_the_same_answer(tables):
 
 
 def test_device_selection():
-    from brdfcl.device import DeviceError, pick_device
+    from brdfcl.device.platforms import DeviceError, pick_device
     p, d = pick_device("0")
     assert pick_device("cpu")[1].name == d.name
     with pytest.raises(DeviceError, match="no OpenCL device"):

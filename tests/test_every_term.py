@@ -1,18 +1,18 @@
 """Every registered term, found in the registry (no hand-written list): a newly registered D, G, F
 or PSD is tested by registering it.  For each, a model that uses it must (1) have a Jacobian that
 matches central finite differences of its float64 reference, and (2) compile into kernels whose
-every output matches that reference (brdfcl.selftest, float64)."""
+every output matches that reference (brdfcl.device.selftest, float64)."""
 import zlib
 
 import numpy as np
 import pytest
 
-from brdfcl import selftest
-from brdfcl.engine import Engine
-from brdfcl.geometry import table_geometry
-from brdfcl.lobes.cells import Cells
-from brdfcl.lobes.spec import REGISTRY
-from brdfcl.model import CT_NDFS, SHADOWING_ALIASES, Model
+from brdfcl.data.geometry import table_geometry
+from brdfcl.device import selftest
+from brdfcl.device.engine import Engine
+from brdfcl.model.compose import CT_NDFS, SHADOWING_ALIASES, Model
+from brdfcl.model.lobes.cells import Cells
+from brdfcl.model.lobes.spec import REGISTRY
 
 
 def spec_for(kind, name):

@@ -15,11 +15,11 @@ import zlib
 import numpy as np
 import pytest
 
-from brdfcl.export.brdf_explorer import brdf_explorer_text, cl_to_glsl, write_brdf_explorer
-from brdfcl.export.fitfile import fit_document
-from brdfcl.lobes.cells import Cells
-from brdfcl.model import Model
-from brdfcl.synth import DEMO, demo_values
+from brdfcl.model.compose import Model
+from brdfcl.model.lobes.cells import Cells
+from brdfcl.model.synth import DEMO, demo_values
+from brdfcl.report.export.brdf_explorer import brdf_explorer_text, cl_to_glsl, write_brdf_explorer
+from brdfcl.report.export.fitfile import fit_document
 
 # Together these use every kernel file: each NDF, G, Fresnel and PSD.
 SPECS = ["diffuse+diffraction:hp+ggx:smith:schlick",

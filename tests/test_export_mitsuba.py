@@ -1,4 +1,4 @@
-"""The Mitsuba 3 BSDF of a fitted model (brdfcl.export.mitsuba), rendered with scalar_rgb.
+"""The Mitsuba 3 BSDF of a fitted model (brdfcl.report.export.mitsuba), rendered with scalar_rgb.
 
 Skips with a reason without the extra (pip install "brdfcl[mitsuba]").  The material is the demo
 database's smooth metal (diffuse + diffraction + GGX, its known parameters written as a fit
@@ -10,11 +10,11 @@ import sys
 import numpy as np
 import pytest
 
-from brdfcl.export.fitfile import fit_document
-from brdfcl.export.sampling import Sampler
-from brdfcl.lobes.cells import Cells
-from brdfcl.model import Model
-from brdfcl.synth import DEMO, demo_values
+from brdfcl.model.compose import Model
+from brdfcl.model.lobes.cells import Cells
+from brdfcl.model.synth import DEMO, demo_values
+from brdfcl.report.export.fitfile import fit_document
+from brdfcl.report.export.sampling import Sampler
 
 NAME = "synth-smooth-metal"
 LIGHT = np.array([-0.5, 0.6, 0.62]) / np.linalg.norm([-0.5, 0.6, 0.62])
@@ -24,7 +24,7 @@ LIGHT = np.array([-0.5, 0.6, 0.62]) / np.linalg.norm([-0.5, 0.6, 0.62])
 def mi():
     mi = pytest.importorskip("mitsuba", reason='Mitsuba 3 not installed: pip install "brdfcl[mitsuba]"')
     mi.set_variant("scalar_rgb")
-    import brdfcl.export.mitsuba  # noqa: F401  (registers "brdfcl")
+    import brdfcl.report.export.mitsuba  # noqa: F401  (registers "brdfcl")
     return mi
 
 
@@ -52,14 +52,14 @@ def _scene(mi, path, size, spp, emitter, integrator, sampler="stratified"):
 
 def _disc(size):
     c = (np.arange(size) + 0.5) / size * 2 - 1
-    x, y = np.meshgrid(c, -c)                      # row 0 at the top, y up (as brdfcl.view.sphere)
+    x, y = np.meshgrid(c, -c)                      # row 0 at the top, y up (as brdfcl.report.view.sphere)
     r2 = x * x + y * y
     return np.stack([x, y, np.sqrt(np.clip(1 - r2, 0, 1))], -1), np.sqrt(r2)
 
 
 def test_sphere_matches_brdfcl_rendering(mi, fit):
     """Directional light of unit irradiance: radiance f(wi, wo) max(0, n.wi) per pixel."""
-    from brdfcl.view.sphere import render_model_sphere
+    from brdfcl.report.view.sphere import render_model_sphere
     model, values, path = fit
     size = 48
     scene = _scene(mi, path, size, 16,
@@ -147,10 +147,10 @@ def test_missing_fit_is_a_clear_error(mi, tmp_path):
 
 def test_without_mitsuba_the_import_says_how_to_install():
     code = ("import sys; sys.modules['mitsuba'] = None; sys.modules['drjit'] = None\n"
-            "try:\n    import brdfcl.export.mitsuba\nexcept ImportError as e:\n    print(e)\n")
+            "try:\n    import brdfcl.report.export.mitsuba\nexcept ImportError as e:\n    print(e)\n")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     assert 'pip install "brdfcl[mitsuba]"' in out.stdout, out.stdout + out.stderr
     # the package itself never imports Mitsuba
-    code = "import sys, brdfcl.export, brdfcl.export.brdf_explorer; print('mitsuba' in sys.modules)"
+    code = "import sys, brdfcl.report.export, brdfcl.report.export.brdf_explorer; print('mitsuba' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     assert out.stdout.strip() == "False", out.stdout + out.stderr

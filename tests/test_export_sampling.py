@@ -1,11 +1,11 @@
-"""The importance sampling of brdfcl.export.sampling (used by the Mitsuba BSDF): the pdf is the
+"""The importance sampling of brdfcl.report.export.sampling (used by the Mitsuba BSDF): the pdf is the
 density that `sample` draws with, and sample weights are unbiased estimates of the albedo."""
 import numpy as np
 import pytest
 
-from brdfcl.export.sampling import Sampler
-from brdfcl.model import Model
-from brdfcl.synth import DEMO, demo_values
+from brdfcl.model.compose import Model
+from brdfcl.model.synth import DEMO, demo_values
+from brdfcl.report.export.sampling import Sampler
 
 
 def _frame(w):

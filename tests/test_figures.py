@@ -1,17 +1,17 @@
-"""The analysis figures (brdfcl.report): they show what the tests compute.  Fast: no fit, synthetic
+"""The analysis figures (brdfcl.report.figures): they show what the tests compute.  Fast: no fit, synthetic
 tables and stand-in fit results."""
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
-from brdfcl import figures_style as FS
-from brdfcl import report
-from brdfcl.gradient_test import gradient_test, phi90_slice
-from brdfcl.lobes.diffraction import LAMBDAS
-from brdfcl.model import Model
-from brdfcl.synth import DEMO, demo_values, tabulate
-from brdfcl.wavelength import wavelength_check
+from brdfcl.analysis.gradient import gradient_test, phi90_slice
+from brdfcl.analysis.wavelength import wavelength_check
+from brdfcl.model.compose import Model
+from brdfcl.model.lobes.diffraction import LAMBDAS
+from brdfcl.model.synth import DEMO, demo_values, tabulate
+from brdfcl.report import figures as report
+from brdfcl.report import style as FS
 
 SPEC = "diffuse+diffraction:hp:none+ggx:smith:schlick"
 

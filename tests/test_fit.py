@@ -7,9 +7,9 @@ import sys
 import numpy as np
 import pytest
 
-from brdfcl.fit import FitOptions, Fitter, load_batch
-from brdfcl.merl import read_merl
-from brdfcl.run import fit_all
+from brdfcl.app.run import fit_all
+from brdfcl.data.merl import read_merl
+from brdfcl.optim.fit import FitOptions, Fitter, load_batch
 
 
 def _fit(paths, **kw):
@@ -29,7 +29,7 @@ def test_recovers_every_demo_parameter(demo_db):
 
 def test_fit_all_outputs_resume_and_export(demo_db, tmp_path):
     out = tmp_path / "out"
-    args = [sys.executable, "-m", "brdfcl.cli", "fit-all", str(demo_db), "--out", str(out),
+    args = [sys.executable, "-m", "brdfcl.app.cli", "fit-all", str(demo_db), "--out", str(out),
             "--model", "diffuse+ggx", "--export-merl"]
     r = subprocess.run(args, capture_output=True, text=True)
     assert r.returncode == 0, r.stderr

@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from brdfcl.geometry import DEFAULT_CUTOFF_DEG, bin_centres, table_geometry
+from brdfcl.data.geometry import DEFAULT_CUTOFF_DEG, bin_centres, table_geometry
 
 
 def test_directions_are_consistent():

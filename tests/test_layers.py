@@ -151,11 +151,11 @@ def test_the_walker_sees_the_imports():
     """The edges the cycle test relies on are found, at module level and in functions."""
     graph = import_graph()
     assert len(graph) > 30
-    assert (False in [local for _, local in graph["brdfcl.run"]["brdfcl.analyze"]])        # module level
-    assert all(local for _, local in graph["brdfcl.run"]["brdfcl.view.pages"])            # matplotlib: local
-    assert "brdfcl.lobes.cells" in graph["brdfcl.engine"]                                 # from .lobes.cells
-    assert "brdfcl.model" in graph["brdfcl.view.pages"]                                   # from ..model
-    assert "brdfcl.report" in graph["brdfcl.analyze"]                                     # from . import report
+    assert (False in [local for _, local in graph["brdfcl.app.run"]["brdfcl.app.analyze"]])
+    assert all(local for _, local in graph["brdfcl.app.run"]["brdfcl.report.view.pages"])
+    assert "brdfcl.model.lobes.cells" in graph["brdfcl.device.engine"]
+    assert "brdfcl.model.compose" in graph["brdfcl.report.view.pages"]
+    assert "brdfcl.report.figures" in graph["brdfcl.app.analyze"]
 
 
 def test_no_import_cycle():
@@ -168,9 +168,32 @@ def test_no_import_cycle():
 def test_run_analyze_cluster_import_downward():
     """The job runner imports the analysis and the cluster runner; neither imports it back."""
     graph = import_graph()
-    assert {"brdfcl.analyze", "brdfcl.cluster"} <= set(graph["brdfcl.run"])
-    for m in ("brdfcl.analyze", "brdfcl.cluster", "brdfcl.inputs", "brdfcl.results"):
-        assert "brdfcl.run" not in graph[m], m
+    assert {"brdfcl.app.analyze", "brdfcl.app.cluster"} <= set(graph["brdfcl.app.run"])
+    for m in ("brdfcl.app.analyze", "brdfcl.app.cluster", "brdfcl.data.inputs", "brdfcl.report.results"):
+        assert "brdfcl.app.run" not in graph[m], m
+
+
+LAYERS = ("_version", "_lazy", "data", "model", "kernels", "device", "optim", "analysis", "report", "app")
+"""brdfcl's layer folders, bottom first: a module imports only from its own layer or lower ones."""
+
+
+def layer(module):
+    """The index in LAYERS of a module's folder (the package's ``__init__``, the facade: None)."""
+    parts = module.split(".")
+    return LAYERS.index(parts[1]) if len(parts) > 1 else None
+
+
+def test_every_module_sits_in_a_layer():
+    assert all(m == ROOT or m.split(".")[1] in LAYERS for m in modules()), \
+        [m for m in modules() if m != ROOT and m.split(".")[1] not in LAYERS]
+
+
+def test_imports_run_down_the_layers():
+    """No import runs up a layer, at module level or in a function."""
+    graph = import_graph()
+    up = [f"{a} -> {b} (line {where[0][0]})" for a, targets in graph.items() for b, where in targets.items()
+          if layer(a) is not None and layer(b) is not None and layer(b) > layer(a)]
+    assert not up, "imports running up a layer (" + " < ".join(LAYERS) + "):\n" + "\n".join(up)
 
 
 if __name__ == "__main__":

@@ -1,4 +1,4 @@
-"""brdfcl.lm.levenberg_marquardt on problems with known answers (numpy only, no OpenCL).
+"""brdfcl.optim.lm.levenberg_marquardt on problems with known answers (numpy only, no OpenCL).
 
 The callback convention is the kernels': loss = sum r^2, JTr = J^T r, JTJ = J^T J, for the
 rows of the batch that are asked for."""
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.optimize import lsq_linear
 
-from brdfcl.lm import LMOptions, levenberg_marquardt
+from brdfcl.optim.lm import LMOptions, levenberg_marquardt
 
 FLAT = "converged (predicted decrease below ftol)"
 FTOL = "converged (ftol)"

@@ -1,4 +1,4 @@
-"""brdfcl.lockstep.run_lockstep on analytic functions (numpy and nlopt only, no OpenCL).
+"""brdfcl.optim.lockstep.run_lockstep on analytic functions (numpy and nlopt only, no OpenCL).
 
 Every run goes through ``within``: a coordinator that deadlocks fails the test after a few
 seconds instead of hanging the suite."""
@@ -9,7 +9,7 @@ import nlopt
 import numpy as np
 import pytest
 
-from brdfcl.lockstep import BIG, Problem, run_lockstep
+from brdfcl.optim.lockstep import BIG, Problem, run_lockstep
 
 K = 3
 LO, HI = np.full(K, -3.0), np.full(K, 3.0)

@@ -5,7 +5,7 @@ import tracemalloc
 import numpy as np
 import pytest
 
-from brdfcl.merl import FILE_SIZE, N_CELLS, SCALE, MerlError, read_database, read_merl, write_merl
+from brdfcl.data.merl import FILE_SIZE, N_CELLS, SCALE, MerlError, read_database, read_merl, write_merl
 
 
 def test_proxy_round_trip_is_identical(proxy_pair, tmp_path):

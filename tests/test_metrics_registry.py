@@ -1,14 +1,14 @@
-"""Adding a metric is one entry in brdfcl.metrics.IMPLEMENTED_METRICS: registered at test time,
+"""Adding a metric is one entry in brdfcl.model.metrics.IMPLEMENTED_METRICS: registered at test time,
 a new metric is fitted by the generated kernels and reported by them, matching the float64
 reference, with no other file edited."""
 import numpy as np
 import pytest
 
-from brdfcl import metrics
-from brdfcl.engine import Engine, select_cells
-from brdfcl.geometry import table_geometry
-from brdfcl.merl import read_merl
-from brdfcl.metrics import IMPLEMENTED_METRICS, METRICS, Metric, check_metric, errors, loss_grad, transform
+from brdfcl.data.geometry import table_geometry
+from brdfcl.data.merl import read_merl
+from brdfcl.device.engine import Engine, select_cells
+from brdfcl.model import metrics
+from brdfcl.model.metrics import IMPLEMENTED_METRICS, METRICS, Metric, check_metric, errors, loss_grad, transform
 
 ASINH = Metric("asinh", g=np.arcsinh, dg=lambda x, g: 1 / np.sqrt(1 + x * x),
                c_g="asinh({x})", c_dg="rsqrt(1 + {x} * {x})",
@@ -34,7 +34,7 @@ def test_builtins_are_registered():
 
 
 def test_registered_metric_is_everywhere(asinh):
-    from brdfcl.cli import build_parser
+    from brdfcl.app.cli import build_parser
     assert METRICS[-1] == asinh and asinh in METRICS and check_metric(asinh) == asinh
     x = np.linspace(0, 50, 7)
     g, dg = transform(asinh, x)

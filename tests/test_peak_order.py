@@ -1,11 +1,11 @@
-"""The peak constraint: Cook-Torrance carries the specular peak (brdfcl.peak_order)."""
+"""The peak constraint: Cook-Torrance carries the specular peak (brdfcl.optim.peak_order)."""
 import numpy as np
 
-from brdfcl.analyze import peak_share
-from brdfcl.fit import FitOptions, Fitter, load_batch
-from brdfcl.merl import read_merl
-from brdfcl.model import Model
-from brdfcl.peak_order import PeakOrder
+from brdfcl.analysis.analyze import peak_share
+from brdfcl.data.merl import read_merl
+from brdfcl.model.compose import Model
+from brdfcl.optim.fit import FitOptions, Fitter, load_batch
+from brdfcl.optim.peak_order import PeakOrder
 
 
 def assert_residual_jacobian(po, m, V, scale, J):

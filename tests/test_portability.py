@@ -1,6 +1,6 @@
 """Programs that are right on the device they run on, whatever it reports about itself.
 
-The vector width is chosen by building and self-testing (brdfcl.width), the choice is
+The vector width is chosen by building and self-testing (brdfcl.device.width), the choice is
 cached per device, a broken PoCL kernel cache is repaired, and every PoCL build present
 (pip wheel, Debian's pocl-opencl-icd) gives the same results."""
 import json
@@ -12,12 +12,12 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from brdfcl import selftest, width
-from brdfcl.device import all_devices, pocl_version
-from brdfcl.engine import Engine
-from brdfcl.fit import FitOptions, fit_tables
-from brdfcl.merl import read_merl
-from brdfcl.program import ProgramError, sound_bitcode, sound_elf
+from brdfcl.data.merl import read_merl
+from brdfcl.device import selftest, width
+from brdfcl.device.engine import Engine
+from brdfcl.device.platforms import all_devices, pocl_version
+from brdfcl.device.program import ProgramError, sound_bitcode, sound_elf
+from brdfcl.optim.fit import FitOptions, fit_tables
 
 POCL = [f"{i}" for i, (p, d) in enumerate(all_devices()) if "portable computing" in p.name.lower()]
 
@@ -30,7 +30,7 @@ def cache(tmp_path, monkeypatch):
 
 
 def _platform_device(selector=None):
-    from brdfcl.device import pick_device
+    from brdfcl.device.platforms import pick_device
     return pick_device(selector)
 
 
@@ -124,7 +124,7 @@ CORRUPT = {
     "truncated kernels": lambda d: [p.write_bytes(p.read_bytes()[:1000]) for p in d.rglob("*.so")],
     "garbage kernels": lambda d: [p.write_bytes(os.urandom(4096)) for p in d.rglob("*.so")],
 }
-RUN = ("import numpy as np; from brdfcl.engine import Engine; from brdfcl.engine import select_cells; "
+RUN = ("import numpy as np; from brdfcl.device.engine import Engine; from brdfcl.device.engine import select_cells; "
        "e = Engine('diffuse+ggx'); idx = select_cells()[::97]; "
        "cs = e.upload(['m'], idx, np.full((1, 3, idx.size), 0.1, np.float32)); "
        "print(e.loss(cs, e.model.defaults(), [0])[0], e.self_test.ok)")
@@ -193,13 +193,13 @@ def test_newest_pocl_is_the_default():
     devs = [pd for pd in all_devices() if "portable computing" in pd[0].name.lower()]
     if not devs:
         pytest.skip("no PoCL platform")
-    from brdfcl.device import pick_device
+    from brdfcl.device.platforms import pick_device
     p, _ = pick_device(None)
     assert pocl_version(p) == max(pocl_version(q) for q, _ in devs)
 
 
 def test_info_shows_width_reason_and_self_test():
-    r = subprocess.run([sys.executable, "-m", "brdfcl.cli", "info"], capture_output=True, text=True, timeout=900)
+    r = subprocess.run([sys.executable, "-m", "brdfcl.app.cli", "info"], capture_output=True, text=True, timeout=900)
     assert r.returncode == 0, r.stderr
     lines = [ln.strip() for ln in r.stdout.splitlines()]
     float_lines = [ln for ln in lines if ln.startswith("float: vector width")]

@@ -6,11 +6,11 @@ import pytest
 from scipy import integrate
 from scipy.special import gamma, gammaincc
 
-from brdfcl.geometry import table_geometry
-from brdfcl.lobes import REGISTRY
-from brdfcl.lobes.cells import Cells
-from brdfcl.lobes.ndf import _upper_gamma, sgd_consts
-from brdfcl.model import Model
+from brdfcl.data.geometry import table_geometry
+from brdfcl.model.compose import Model
+from brdfcl.model.lobes import REGISTRY
+from brdfcl.model.lobes.cells import Cells
+from brdfcl.model.lobes.ndf import _upper_gamma, sgd_consts
 
 LOBES = ["diffuse", "diffraction:hp", "diffraction:abc:schlick", "diffraction:gauss:conductor",
          "diffraction:hp:dielectric", "ggx:smith:schlick", "ggx:smith-hc:dielectric",

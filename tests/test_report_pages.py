@@ -6,7 +6,7 @@ import sys
 
 import pytest
 
-from brdfcl.run import fit_all, write_pages
+from brdfcl.app.run import fit_all, write_pages
 
 NAMES = ["synth-smooth-metal", "synth-fabric"]
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
@@ -68,7 +68,7 @@ def test_cli_writes_the_report_and_can_skip_it(demo_db, tmp_path):
     d = tmp_path / "db"
     d.mkdir()
     (d / "synth-mirror.binary").symlink_to(demo_db / "synth-mirror.binary")
-    cli = [sys.executable, "-m", "brdfcl.cli", "fit-all", str(d), "--model", "diffuse+ggx", "--quiet"]
+    cli = [sys.executable, "-m", "brdfcl.app.cli", "fit-all", str(d), "--model", "diffuse+ggx", "--quiet"]
     r = subprocess.run(cli + ["--out", str(tmp_path / "a")], capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
     assert "report" in r.stdout and (tmp_path / "a" / "report" / "synth-mirror.html").exists()
@@ -77,14 +77,14 @@ def test_cli_writes_the_report_and_can_skip_it(demo_db, tmp_path):
 
 
 def test_cli_exports_a_finished_fit(run, tmp_path):
-    from brdfcl.merl import read_merl
+    from brdfcl.data.merl import read_merl
     fit = run / "synth-smooth-metal.json"
-    r = subprocess.run([sys.executable, "-m", "brdfcl.cli", "export", str(fit), "--brdf-explorer",
+    r = subprocess.run([sys.executable, "-m", "brdfcl.app.cli", "export", str(fit), "--brdf-explorer",
                         str(tmp_path / "m.brdf"), "--merl", str(tmp_path / "m.binary")], capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
     assert "::begin shader" in (tmp_path / "m.brdf").read_text()
     table = read_merl(tmp_path / "m.binary")
     assert table.valid.sum() > 0.4 * table.valid.size
-    r = subprocess.run([sys.executable, "-m", "brdfcl.cli", "export", str(fit), "--merl", str(fit)],
+    r = subprocess.run([sys.executable, "-m", "brdfcl.app.cli", "export", str(fit), "--merl", str(fit)],
                        capture_output=True, text=True)
     assert r.returncode == 2 and "would overwrite" in r.stderr and fit.read_text().startswith("{")

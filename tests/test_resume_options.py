@@ -11,12 +11,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from brdfcl.fit import FitOptions
-from brdfcl.merl import read_merl
-from brdfcl.output import NOT_RESULT_OPTIONS, option_difference, recorded_options, resume_state
-from brdfcl.run import InputOverwriteError, Models, ResultsDiffer, check_output_not_input, fit_all
+from brdfcl.app.run import InputOverwriteError, Models, ResultsDiffer, check_output_not_input, fit_all
+from brdfcl.data.merl import read_merl
+from brdfcl.optim.fit import FitOptions
+from brdfcl.report.output import NOT_RESULT_OPTIONS, option_difference, recorded_options, resume_state
 
-CLI = [sys.executable, "-m", "brdfcl.cli"]
+CLI = [sys.executable, "-m", "brdfcl.app.cli"]
 MODEL = "diffuse+ggx"
 NAME = "synth-mirror"
 

@@ -8,11 +8,11 @@ import time
 import numpy as np
 import pytest
 
-from brdfcl.merl import FILE_SIZE, HEADER, N_CELLS, MerlError, read_merl, write_merl
-from brdfcl.model import Model, ModelError
-from brdfcl.run import fit_all
+from brdfcl.app.run import fit_all
+from brdfcl.data.merl import FILE_SIZE, HEADER, N_CELLS, MerlError, read_merl, write_merl
+from brdfcl.model.compose import Model, ModelError
 
-CLI = [sys.executable, "-m", "brdfcl.cli"]
+CLI = [sys.executable, "-m", "brdfcl.app.cli"]
 
 
 def cli(*args, **kw):
@@ -118,7 +118,7 @@ def test_interrupted_run_resumes(demo_db, tmp_path, sig):
 @pytest.mark.parametrize("name, brdf", [
     ("black", np.zeros(3)), ("white", np.full(3, 1 / np.pi)), ("near-black", np.full(3, 1e-7))])
 def test_extreme_materials_end_cleanly(tmp_path, name, brdf):
-    from brdfcl.geometry import table_geometry
+    from brdfcl.data.geometry import table_geometry
     g = table_geometry()
     t = np.where(g.above_horizon, 1.0, np.nan)[None, :] * brdf[:, None]
     write_merl(tmp_path / f"{name}.binary", t)

@@ -6,18 +6,18 @@ import json
 import numpy as np
 import pytest
 
-from brdfcl.analyze import lobe_images, peak_share
-from brdfcl.codegen import KernelOptions, emit, jtj_pairs, render
-from brdfcl.engine import Engine, select_cells
-from brdfcl.geometry import table_geometry
-from brdfcl.lobes import CookTorrance, Diffraction, Diffuse
-from brdfcl.lobes.lobe import ROLES
-from brdfcl.merl import read_merl, write_merl
-from brdfcl.model import Model, ModelError
-from brdfcl.peak_order import PeakOrder
-from brdfcl.run import fit_all
-from brdfcl.selection import variants
-from brdfcl.synth import demo_values, tabulate
+from brdfcl.analysis.analyze import lobe_images, peak_share
+from brdfcl.app.run import fit_all
+from brdfcl.data.geometry import table_geometry
+from brdfcl.data.merl import read_merl, write_merl
+from brdfcl.device.engine import Engine, select_cells
+from brdfcl.kernels.codegen import KernelOptions, emit, jtj_pairs, render
+from brdfcl.model.compose import Model, ModelError
+from brdfcl.model.lobes import CookTorrance, Diffraction, Diffuse
+from brdfcl.model.lobes.lobe import ROLES
+from brdfcl.model.synth import demo_values, tabulate
+from brdfcl.optim.peak_order import PeakOrder
+from brdfcl.optim.selection import variants
 from tests.test_engine import _random_values, _reference
 from tests.test_peak_order import assert_residual_jacobian
 from tests.test_reference import random_cells

@@ -4,15 +4,15 @@ import sys
 
 import numpy as np
 
-from brdfcl.geometry import table_geometry
-from brdfcl.lobes.cells import Cells
-from brdfcl.merl import read_merl
-from brdfcl.model import Model
-from brdfcl.synth import DEMO
+from brdfcl.data.geometry import table_geometry
+from brdfcl.data.merl import read_merl
+from brdfcl.model.compose import Model
+from brdfcl.model.lobes.cells import Cells
+from brdfcl.model.synth import DEMO
 
 
 def run(*args):
-    return subprocess.run([sys.executable, "-m", "brdfcl.cli", *args], capture_output=True, text=True)
+    return subprocess.run([sys.executable, "-m", "brdfcl.app.cli", *args], capture_output=True, text=True)
 
 
 def test_demo_database_matches_its_truth(demo_db):

@@ -1,4 +1,4 @@
-"""Standard errors, directional albedo and flags of a fit (brdfcl.uncertainty, issue 17).
+"""Standard errors, directional albedo and flags of a fit (brdfcl.optim.uncertainty, issue 17).
 
 The standard errors are checked against a bootstrap over cells: RESAMPLES multinomial resamples of
 the fitted cells, each refitted from the optimum by Levenberg-Marquardt with the counts as weights.
@@ -14,15 +14,15 @@ import time
 
 import numpy as np
 
-from brdfcl.engine import select_cells
-from brdfcl.fit import FitOptions, Fitter, coarse_cells
-from brdfcl.geometry import table_geometry
-from brdfcl.lm import LMOptions, levenberg_marquardt
-from brdfcl.lobes.cells import Cells
-from brdfcl.model import Model
-from brdfcl.output import result_document
-from brdfcl.synth import DEMO, demo_values
-from brdfcl.uncertainty import ALBEDO_LIMIT, bounds_hit, directional_albedo, flags
+from brdfcl.data.geometry import table_geometry
+from brdfcl.device.engine import select_cells
+from brdfcl.model.compose import Model
+from brdfcl.model.lobes.cells import Cells
+from brdfcl.model.synth import DEMO, demo_values
+from brdfcl.optim.fit import FitOptions, Fitter, coarse_cells
+from brdfcl.optim.lm import LMOptions, levenberg_marquardt
+from brdfcl.optim.uncertainty import ALBEDO_LIMIT, bounds_hit, directional_albedo, flags
+from brdfcl.report.output import result_document
 
 MATERIAL = "synth-smooth-plastic"   # diffuse+ggx:smith:dielectric, alpha 0.03
 NOISE = 0.02                        # multiplicative, as `brdfcl synth --noise 0.02`
@@ -32,7 +32,7 @@ RATIO = (0.7, 1.4)
 
 
 def _noisy_table(model, values, index, noise, seed):
-    """Values of the model at the cells with multiplicative noise, as brdfcl.synth.write_synth."""
+    """Values of the model at the cells with multiplicative noise, as brdfcl.model.synth.write_synth."""
     rng = np.random.default_rng(seed)
     p = model.reference(Cells.from_geometry(table_geometry(), index), values, jacobian=False)
     return np.maximum(p * (1.0 + noise * rng.standard_normal(p.shape)), 0.0)

@@ -1,4 +1,4 @@
-"""Lit spheres and slice plots (brdfcl.view) on the synthetic demo materials, whose tables are
+"""Lit spheres and slice plots (brdfcl.report.view) on the synthetic demo materials, whose tables are
 the model's own values at the bin centres: the table sphere and the model sphere of one material
 differ only by the table's sampling and the trilinear lookup."""
 import json
@@ -6,13 +6,13 @@ import json
 import numpy as np
 import pytest
 
-from brdfcl.geometry import table_geometry
-from brdfcl.lobes.cells import Cells
-from brdfcl.merl import read_merl
-from brdfcl.model import Model
-from brdfcl.view import sphere
-from brdfcl.view.slices import slice_directions, slice_values, write_slices
-from brdfcl.view.sphere import (
+from brdfcl.data.geometry import table_geometry
+from brdfcl.data.merl import read_merl
+from brdfcl.model.compose import Model
+from brdfcl.model.lobes.cells import Cells
+from brdfcl.report.view import sphere
+from brdfcl.report.view.slices import slice_directions, slice_values, write_slices
+from brdfcl.report.view.sphere import (
     DEFAULT_LIGHTS,
     render_model_sphere,
     render_table_sphere,

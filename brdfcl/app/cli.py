@@ -1,0 +1,340 @@
+"""The `brdfcl` command line.  Errors are one line naming the problem (tracebacks with --debug)."""
+from __future__ import annotations
+
+import argparse
+import functools
+import inspect
+import os
+import sys
+from dataclasses import fields, replace
+
+from brdfcl._version import __version__
+
+NO_CUTOFF_DEG = 90.0    # --cutoff at or beyond the horizon: no cutoff (FitOptions.cutoff_deg None)
+
+
+class UsageError(Exception):
+    """A problem the user can fix, printed as one line."""
+
+
+def cmd_info(args):
+    import pyopencl as cl
+
+    from brdfcl.device.platforms import all_devices, describe_device, has_fp64, pick_device
+    from brdfcl.device.width import forced_width
+    forced_width(args.vector_width)             # a bad BRDFCL_VECTOR_WIDTH: one line, exit 2
+    print(f"brdfcl {__version__}, pyopencl {cl.VERSION_TEXT}")
+    for i, (p, d) in enumerate(all_devices()):
+        for line in describe_device(i, p, d):
+            print(line)
+        for real in ("float", "double") if has_fp64(d) else ("float",):
+            print(f"     {real}: {_program_check(i, real, args.vector_width)}", flush=True)
+    p, d = pick_device(args.device)
+    print(f"default device: {d.name} on {p.name} ({p.version})")
+    return 0
+
+
+def _program_check(index, real, vector_width):
+    """The width used for the default model on a device, why, and its program's self-test."""
+    from brdfcl.device.engine import Engine
+    from brdfcl.device.program import ProgramError
+    from brdfcl.model.compose import DEFAULT_MODEL
+    try:
+        eng = Engine(DEFAULT_MODEL, device=str(index), real=real, vector_width=vector_width)
+    except (ProgramError, ValueError) as e:
+        return f"no working program: {e}"
+    w = eng.width
+    why = w.reason if w is not None else "not a CPU: one cell per work-item"
+    return f"vector width {eng.opt.vw} ({why}); self-test {eng.self_test}"
+
+
+def cmd_synth(args):
+    from brdfcl.model.synth import DEMO, write_synth
+    mats = args.materials.split(",") if args.materials else None
+    if mats:
+        bad = [m for m in mats if m not in DEMO]
+        if bad:
+            raise UsageError(f"unknown demo material(s) {', '.join(bad)}; valid: {', '.join(DEMO)}")
+    write_synth(args.out, mats, noise=args.noise, missing=args.missing, seed=args.seed)
+    print(f"wrote {len(mats or DEMO)} materials and truth.json to {args.out}")
+    return 0
+
+
+def _fixed(items):
+    out = {}
+    for it in items or []:
+        k, sep, v = it.partition("=")
+        try:
+            out[k.strip()] = float(v)
+        except ValueError:
+            raise UsageError(f"--fix '{it}': expected NAME=VALUE, e.g. ct.eta=1.5") from None
+        if not sep:
+            raise UsageError(f"--fix '{it}': expected NAME=VALUE, e.g. ct.eta=1.5")
+    return out
+
+
+def fit_options(args):
+    """FitOptions from the fit flags the user gave; every other field keeps FitOptions' default.
+
+    The flags of `add_fit_arguments` are absent from ``args`` unless given (default SUPPRESS), and
+    most are stored under their FitOptions field's name; the others are converted here."""
+    from brdfcl.model.compose import Model
+    from brdfcl.optim.fit import FitOptions
+    given = vars(args)
+    kw = {f.name: given[f.name] for f in fields(FitOptions) if f.name in given}
+    if "cutoff" in given:
+        kw["cutoff_deg"] = None if args.cutoff >= NO_CUTOFF_DEG else args.cutoff
+    if "fix" in given:
+        kw["fixed"] = _fixed(args.fix)
+    if "max_iter" in given:
+        kw["lm"] = replace(FitOptions().lm, max_iter=args.max_iter)
+    opts = FitOptions(**kw)
+    Model(opts.model, fixed=opts.fixed)             # clear error for a bad model before any work
+    return opts
+
+
+def _database_job(args):
+    """(source folder, FitOptions, log) shared by fit-all and analyze."""
+    from brdfcl.model.synth import demo_dir
+    if args.demo == (args.database is not None):
+        raise UsageError("give a database folder or --demo (not both)")
+    source = demo_dir() if args.demo else args.database
+    from tqdm import tqdm
+    # tqdm.write keeps stage messages from tearing the progress bar on a terminal
+    log = (lambda s: None) if args.quiet else (lambda s: tqdm.write(s, file=sys.stderr))
+    return source, fit_options(args), log
+
+
+def cmd_fit_all(args):
+    from brdfcl.app.run import fit_all
+    source, opts, log = _database_job(args)
+    client = None
+    if args.workers or args.scheduler:
+        from brdfcl.app.cluster import make_client
+        client = make_client(args.scheduler, args.workers)
+    try:
+        report = fit_all(source, args.out, opts, batch=args.batch, export=args.export_merl,
+                         quiet=args.quiet, log=log, client=client, select_lobes=args.select_lobes,
+                         free_peak=args.free_peak, overwrite=args.overwrite, pages=not args.no_report)
+    finally:
+        if client is not None:
+            client.close()
+    n_ok = sum(r.success for r in report.results)
+    failed = [r for r in report.results if not r.success]
+    print(f"fitted {n_ok} materials in {report.seconds:.1f} s ({len(report.resumed)} already done, "
+          f"{len(failed)} failed, {len(report.skipped)} skipped); results in {args.out}/summary.csv"
+          + (f", report {report.pages}" if report.pages else ""))
+    for r in failed:
+        print(f"failed: {r.name}: {r.status}", file=sys.stderr)
+    for why in report.skipped.values() if args.quiet else ():     # else logged as they happened
+        print(f"skipped: {why}", file=sys.stderr)
+    return 0 if report.ok else 1
+
+
+def cmd_analyze(args):
+    from brdfcl.app.analyze import analyze
+    source, opts, log = _database_job(args)
+
+    def on_skip(path, why):                 # as fit-all: one line per file, also with --quiet
+        print(f"skipped: {why if path in why else f'{path}: {why}'}", file=sys.stderr, flush=True)
+    res = analyze(source, args.out, opts, batch=args.batch, log=log, figures=not args.no_figures,
+                  ct_peak=not args.free_peak, on_skip=on_skip, pages=not args.no_report)
+    n = sum(a.verdict == "diffraction" for a in res)
+    print(f"analysed {len(res)} materials: {n} with diffraction, {len(res) - n} without, "
+          f"{len(res.skipped)} skipped; see {args.out}/analysis.csv and {args.out}/index.html"
+          + ("" if args.no_report else f", report {args.out}/report/index.html"))
+    return 0 if res.ok else 1
+
+
+def cmd_export(args):
+    """A finished fit (NAME.json) as a BRDF Explorer file and/or a MERL table, without refitting."""
+    from brdfcl.report.export.fitfile import load_fit
+    if not (args.brdf_explorer or args.merl):
+        raise UsageError("give --brdf-explorer PATH and/or --merl PATH")
+    for out in (args.brdf_explorer, args.merl):
+        if out and os.path.exists(out) and os.path.samefile(out, args.fit):
+            raise UsageError(f"{out}: would overwrite the fit it exports")
+    fit = load_fit(args.fit)
+    if args.brdf_explorer:
+        from brdfcl.report.export.brdf_explorer import write_brdf_explorer
+        print(f"wrote {write_brdf_explorer(args.brdf_explorer, fit.doc)}")
+    if args.merl:
+        from brdfcl.device.engine import Engine
+        from brdfcl.report.output import export_fit
+        export_fit(args.merl, Engine(fit.model, device=args.device), fit.model.as_dict(fit.values))
+        print(f"wrote {args.merl}")
+    return 0
+
+
+def cmd_terms(args):
+    """Every registered term as Markdown (docs/terms.md is this output)."""
+    from brdfcl.model.lobes.catalogue import terms_markdown
+    print(terms_markdown())
+    return 0
+
+
+def cmd_params(args):
+    from brdfcl.model.compose import Model
+    m = Model(args.model)
+    print(f"model {m.spec}: {m.n_params} parameters")
+    print("lobes: " + ", ".join(f"{lb.prefix}.* = {lb.spec()} ({lb.role})" for lb in m.lobes)
+          + "; a kind's second lobe is prefixed ct2 (diffuse2, diffraction2), its third ct3, ...")
+    print(f"{'name':24s} {'lo':>9s} {'hi':>9s} {'default':>9s} {'search':>17s} {'space':>5s}  unit  meaning")
+    for s in m.slots:
+        p = s.param
+        lo, hi = p.search_range
+        print(f"{s.name:24s} {p.lo:9.3g} {p.hi:9.3g} {p.default:9.3g} {f'{lo:.3g}..{hi:.3g}':>17s} "
+              f"{'log' if p.log else 'lin':>5s}  {p.unit or '-':5s} {p.doc}")
+    return 0
+
+
+def _default(func, name):
+    """The default of one of func's parameters: the CLI shows and uses it without repeating it."""
+    return inspect.signature(func).parameters[name].default
+
+
+def add_fit_arguments(p):
+    """The flags that make FitOptions (see `fit_options`).  Their defaults are FitOptions' and
+    LMOptions' own: a flag that is not given is absent from the parsed arguments, and its help
+    shows the field's default."""
+    from brdfcl.model.metrics import IMPLEMENTED_METRICS, METRICS
+    from brdfcl.optim.fit import GLOBAL_METHODS, FitOptions
+    d = FitOptions()
+    cutoff = "none" if d.cutoff_deg is None else f"{d.cutoff_deg:g}"
+    real = {"float": "float32", "double": "float64"}.get(d.real, d.real)
+    opt = functools.partial(p.add_argument, default=argparse.SUPPRESS)    # absent unless given
+    opt("--model", help=f"model string (default {d.model})")
+    opt("--metric", choices=METRICS, help=f"fit metric (default {d.metric}); "
+        + "; ".join(f"{m.name}: {m.doc}" for m in IMPLEMENTED_METRICS.values()))
+    opt("--no-cos", dest="cosw", action="store_false",
+        help="no cos(theta_i) factor in the residual")
+    opt("--cutoff", type=float,
+        help="leave out cells with theta_i or theta_o beyond this angle "
+             f"(degrees, {NO_CUTOFF_DEG:g} or more: none; default {cutoff})")
+    opt("--double", dest="real", action="store_const", const="double",
+        help=f"float64 kernels and data (default {real})")
+    opt("--device", help="OpenCL device index or name (default: PoCL CPU)")
+    opt("--vector-width", type=int, choices=(1, 2, 4, 8, 16),
+        help="cells per work-item on a CPU (default: the widest that passes the self-test; "
+             "also BRDFCL_VECTOR_WIDTH)")
+    opt("--global", dest="global_method", choices=GLOBAL_METHODS,
+        help=f"global search (default {d.global_method}); lds: Sobol candidates + nlopt L-BFGS starts")
+    opt("--candidates", dest="n_candidates", metavar="CANDIDATES", type=int,
+        help=f"Sobol candidates per material (lds; default {d.n_candidates})")
+    opt("--starts", dest="n_starts", metavar="STARTS", type=int,
+        help=f"local searches per material (lds; default {d.n_starts})")
+    opt("--max-iter", type=int, help=f"Levenberg-Marquardt iterations (default {d.lm.max_iter})")
+    opt("--fix", action="append", metavar="NAME=VALUE", help="hold a parameter fixed")
+    opt("--ct-peak", action="store_true",
+        help="Cook-Torrance carries the specular peak: the diffraction lobe may not exceed it "
+             "there (always on in analyze and --select-lobes unless --free-peak)")
+    p.add_argument("--free-peak", action="store_true", help="analyze, --select-lobes: no peak constraint")
+    opt("--seed", type=int, help=f"seed of the global search (default {d.seed})")
+
+
+def add_database_arguments(p, verb, out_help, job):
+    """What fit-all and analyze share: the database (or --demo), the output, the fit options.
+    ``job``: the function the command runs (brdfcl.app.run.fit_all, brdfcl.app.analyze.analyze), whose
+    defaults the other flags take."""
+    p.add_argument("database", nargs="?", default=None, help="folder of MERL .binary files")
+    p.add_argument("--demo", action="store_true", help=f"{verb} the embedded demo database")
+    p.add_argument("--out", required=True, help=out_help)
+    add_fit_arguments(p)
+    p.add_argument("--batch", type=int, default=_default(job, "batch"),
+                   help="materials per batch (all share each launch; default %(default)s)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar or stage messages")
+    p.add_argument("--no-report", action="store_true",
+                   help="skip the run's report (OUT/report/: spheres, slices, comparison page)")
+
+
+def build_parser():
+    from brdfcl.app.analyze import analyze
+    from brdfcl.app.run import fit_all
+    from brdfcl.model.synth import write_synth
+    from brdfcl.optim.fit import FitOptions
+    ap = argparse.ArgumentParser(prog="brdfcl", description=__doc__)
+    ap.add_argument("--version", action="version", version=f"brdfcl {__version__}")
+    ap.add_argument("--debug", action="store_true", help="show tracebacks")
+    sub = ap.add_subparsers(dest="cmd", required=True)
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help="show tracebacks")
+    add = sub.add_parser
+    sub.add_parser = lambda *a, **kw: add(*a, parents=[common], **kw)
+
+    p = sub.add_parser("info", help="list OpenCL devices, the vector width used on each and its self-test")
+    p.add_argument("--device", default=None, help="device index or name (default: PoCL CPU)")
+    p.add_argument("--vector-width", type=int, default=None, help="check this width instead of choosing")
+    p.set_defaults(func=cmd_info)
+
+    p = sub.add_parser("synth", help="write the synthetic demo database (MERL format)")
+    p.add_argument("out", help="output folder")
+    p.add_argument("--noise", type=float, default=_default(write_synth, "noise"),
+                   help="relative Gaussian noise (default %(default)s)")
+    p.add_argument("--missing", type=float, default=_default(write_synth, "missing"),
+                   help="fraction of cells marked missing (default %(default)s)")
+    p.add_argument("--seed", type=int, default=_default(write_synth, "seed"),
+                   help="seed of the noise and missing cells (default %(default)s)")
+    p.add_argument("--materials", default=None, help="comma-separated subset of the demo materials")
+    p.set_defaults(func=cmd_synth)
+
+    p = sub.add_parser("fit-all", help="fit every .binary of a folder (or --demo)")
+    add_database_arguments(p, "fit", "output folder, outside the input data (resumes results "
+                                      "made there with the same options)", fit_all)
+    p.add_argument("--export-merl", action="store_true", help="write each fitted model as NAME.binary")
+    p.add_argument("--overwrite", action="store_true",
+                   help="refit and replace results in --out that were made with other options "
+                        "(without it such results stop the run)")
+    p.add_argument("--select-lobes", action="store_true",
+                   help="fit with and without each lobe and keep what the material needs (brdfcl analyze)")
+    p.add_argument("--workers", type=int, default=0, help="fit on a local Dask cluster of N workers")
+    p.add_argument("--scheduler", default=None, help="fit on the Dask cluster at this address")
+    p.set_defaults(func=cmd_fit_all)
+
+    p = sub.add_parser("analyze", help="gradient test, wavelength check and lobe selection per material")
+    add_database_arguments(p, "analyse", "output folder", analyze)
+    p.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
+    p.set_defaults(func=cmd_analyze)
+
+    p = sub.add_parser("export", help="a finished fit (OUT/NAME.json) for a renderer: BRDF Explorer, MERL")
+    p.add_argument("fit", help="a NAME.json written by fit-all")
+    p.add_argument("--brdf-explorer", metavar="PATH", help="write a BRDF Explorer .brdf file (analytic GLSL)")
+    p.add_argument("--merl", metavar="PATH", help="write the fitted model tabulated as a MERL .binary")
+    p.add_argument("--device", default=None, help="OpenCL device for --merl (default: PoCL CPU)")
+    p.set_defaults(func=cmd_export)
+
+    p = sub.add_parser("terms", help="every D, G, F and PSD term with its parameters and source (Markdown)")
+    p.set_defaults(func=cmd_terms)
+
+    p = sub.add_parser("params", help="list a model's parameters, bounds and units")
+    p.add_argument("model", nargs="?", default=FitOptions().model, help="model string (default %(default)s)")
+    p.set_defaults(func=cmd_params)
+    return ap
+
+
+def main(argv=None):
+    ap = build_parser()
+    args = ap.parse_args(argv)
+    debug = getattr(args, "debug", False)
+    try:
+        return args.func(args)
+    except KeyboardInterrupt:
+        print("brdfcl: interrupted", file=sys.stderr)
+        return 130
+    except BrokenPipeError:                     # output piped into `head` and the like
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
+    except Exception as e:  # one line unless --debug
+        if debug:
+            raise
+        from brdfcl.app.cluster import WorkerError
+        from brdfcl.data.merl import MerlError
+        from brdfcl.device.platforms import DeviceError
+        from brdfcl.model.compose import ModelError
+        known = (UsageError, MerlError, ModelError, DeviceError, OSError, ValueError, WorkerError)
+        kind = "" if isinstance(e, known) else f"{type(e).__name__}: "
+        print(f"brdfcl: error: {kind}{e}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

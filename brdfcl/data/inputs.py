@@ -1,0 +1,93 @@
+"""A run's input files, and the rule that brdfcl never writes into them.
+
+What every job (``brdfcl fit-all``, ``analyze``, a cluster task) does with its input before and
+while fitting: list the database (``database_paths``), read one file at a time under its path
+(``FileReader``), refuse an output folder that is, holds or is inside the input data
+(``check_output_not_input``: InputOverwriteError, symlinks resolved) and one that cannot be written
+(``check_output_dir``), before any work.  It depends on brdfcl.data.merl alone, so the job runner
+(brdfcl.app.run), the analysis and the cluster runner all import it from below.
+"""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from brdfcl.data.merl import MerlError, list_database, read_merl
+
+
+class InputOverwriteError(ValueError):
+    """An output that would be, hold or sit inside the input data (brdfcl never writes there)."""
+
+
+def database_paths(source) -> list[str]:
+    """A folder (its .binary files), a single file, or a list of files."""
+    if isinstance(source, (str, os.PathLike)):
+        return [os.fspath(source)] if os.path.isfile(source) else list_database(source)
+    return [os.fspath(p) for p in source]
+
+
+class FileReader:
+    """Reads one file when called; named by its path so that errors can say which."""
+
+    def __init__(self, path):
+        self.path = path
+
+    def __call__(self):
+        if not os.path.exists(self.path):
+            raise MerlError(f"{self.path}: file disappeared before it could be read")
+        return read_merl(self.path)
+
+    def __str__(self):
+        return self.path
+
+
+def _forms(path):
+    """A path as given (absolute, normalised) and with every symlink resolved."""
+    return {os.path.abspath(path), os.path.realpath(path)}
+
+
+def _within(a, b):
+    """a is b or inside it."""
+    return a == b or os.path.commonpath([a, b]) == b
+
+
+def check_output_not_input(source, out, paths=None):
+    """Refuse (InputOverwriteError, one line) an output folder that is, is inside or holds the input
+    folder, or that is or holds an input file; paths as given and with symlinks resolved (a
+    folder of links: the links' targets are inputs too).  ``source``: folder, file or list of
+    files as for fit_all; ``paths``: its files if already listed.  Call before any work
+    (fit_all and brdfcl.analysis.analyze do)."""
+    paths = database_paths(source) if paths is None else paths
+    outs = _forms(out)
+    if isinstance(source, (str, os.PathLike)) and os.path.isdir(source):
+        for f in sorted(_forms(source)):
+            for o in sorted(outs):
+                how = ("is the input folder" if o == f else "is inside the input folder" if _within(o, f)
+                       else "holds the input folder" if _within(f, o) else None)
+                if how:
+                    _refuse(out, how, f)
+    for p in paths:
+        files = _forms(p) | {os.path.join(os.path.realpath(os.path.dirname(os.path.abspath(p))),
+                                          os.path.basename(p))}
+        for f in sorted(files):
+            for o in sorted(outs):
+                if _within(f, o):
+                    _refuse(out, "is the input file" if o == f else "holds the input file", f)
+
+
+def _refuse(out, how, what):
+    raise InputOverwriteError(f"output folder {out} {how} {what}: input data is read-only to brdfcl; "
+                              f"choose an output folder outside the input data")
+
+
+def check_output_dir(out):
+    """Create ``out`` if needed and prove it writable: a one-line OSError naming it if not."""
+    out = Path(out)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        probe = out / f".write-test-{os.getpid()}"
+        probe.write_text("")
+        probe.unlink()
+    except OSError as e:
+        raise OSError(f"{out}: output folder cannot be written: {e.strerror or e}") from None
+    return out

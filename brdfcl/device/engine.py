@@ -1,0 +1,283 @@
+"""The OpenCL engine: a database's cells on the device, evaluated for many parameter vectors at once.
+
+A `CellSet` is the geometry of a selection of table cells (computed once) and
+the measured values of every material at those cells, uploaded once.  An
+`Engine` is one compiled program for one model; each call evaluates a batch of
+(material, parameter vector) pairs in one launch per buffer block and returns
+float64 sums.  Parameters are natural values (not log space); gradients are
+with respect to the model's free natural parameters.
+"""
+from __future__ import annotations
+
+import hashlib
+import logging
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import pyopencl as cl
+
+from brdfcl.data.geometry import DEFAULT_CUTOFF_DEG, table_geometry
+from brdfcl.device import selftest, width
+from brdfcl.device.platforms import has_fp64, pick_device
+from brdfcl.device.program import KERNELS, ProgramError, build, crash_guard, repair_pocl_cache
+from brdfcl.device.width import is_cpu
+from brdfcl.kernels.codegen import KernelOptions, jtj_pairs, n_outputs, render
+from brdfcl.model.compose import Model
+from brdfcl.model.lobes.cells import Cells
+from brdfcl.model.metrics import METRICS
+
+_log = logging.getLogger("brdfcl")
+_CONTEXTS: dict = {}
+_PROGRAMS: dict = {}
+
+
+def context_for(selector=None):
+    """(context, queue, device, platform) for a device selector, one per device per process."""
+    platform, device = pick_device(selector)
+    key = (platform.name, device.name, device.int_ptr)
+    if key not in _CONTEXTS:
+        ctx = cl.Context([device])
+        _CONTEXTS[key] = (ctx, cl.CommandQueue(ctx), device, platform)
+    return _CONTEXTS[key]
+
+
+def default_options(device, real="float", **kw) -> KernelOptions:
+    """Work layout for a device: vectors of ``vw`` cells per work-item on CPUs (the width comes
+    from brdfcl.device.width, never from the device's own report), one cell per work-item on GPUs."""
+    if is_cpu(device):
+        local, chunk = 1, 256
+    else:
+        kw["vw"], local, chunk = 1, min(128, device.max_work_group_size), 4096
+    kw.setdefault("local", local)
+    kw.setdefault("chunk", chunk)
+    return KernelOptions(real=real, **kw)
+
+
+@dataclass
+class CellSet:
+    """Selected cells of the table for a list of materials, on one device.
+
+    Geometry rows: sin th, cos th, cos td, cos ti, cos to, weight.  Data:
+    (material, channel, cell), NaN where a cell is missing.  Padded to a multiple
+    of the vector width with copies of the first cell at weight 0."""
+
+    names: list
+    index: np.ndarray                 # table cell index of each (unpadded) cell
+    n_cells: int                      # padded length
+    dtype: type
+    geom_host: np.ndarray
+    blocks: list = field(default_factory=list)   # [(first material, count, data buffer)]
+    geom_buf: Any = None              # cl.Buffer of geom_host
+
+    @property
+    def n_materials(self):
+        return len(self.names)
+
+    def cells(self) -> Cells:
+        """float64 reference cells of this set (unpadded)."""
+        return Cells.from_geometry(table_geometry(), self.index)
+
+    def block_of(self, mat):
+        for b, (first, count, _) in enumerate(self.blocks):
+            if first <= mat < first + count:
+                return b
+        raise IndexError(mat)
+
+
+def select_cells(cutoff_deg=DEFAULT_CUTOFF_DEG, stride=1, offset=0):
+    """Table indices of the fitted cells: above the horizon, inside the cut-off, every stride-th."""
+    idx = np.flatnonzero(table_geometry().mask(cutoff_deg))
+    return idx[offset::stride] if stride > 1 else idx
+
+
+def extract(tables, indices, dtype=np.float32, on_error=None):
+    """Read each table once and keep its values at each index set: (names, [(n_mat, 3, n_i)]).
+
+    ``tables`` yields MerlTable objects or callables returning one (files are read lazily);
+    a table that raises is reported to ``on_error(item, exc)`` and skipped (re-raised if None)."""
+    names, parts = [], [[] for _ in indices]
+    for item in tables:
+        try:
+            t = item() if callable(item) else item
+            brdf = t.brdf(np.float64)
+        except Exception as e:
+            if on_error is None:
+                raise
+            on_error(item, e)
+            continue
+        names.append(t.name)
+        for lst, idx in zip(parts, indices):
+            lst.append(brdf[:, idx].astype(dtype))
+        del brdf
+    return names, [np.stack(p) if p else np.zeros((0, 3, idx.size), dtype) for p, idx in zip(parts, indices)]
+
+
+def build_cellset(ctx, names, index, data, dtype=np.float32, pad_to=16, weight_scale=None,
+                  max_alloc=None):
+    """Upload geometry and per-material data (n_mat, 3, n) for the given table cells."""
+    g = table_geometry()
+    n = index.size
+    n_pad = max(pad_to, -(-n // pad_to) * pad_to)
+    full = np.concatenate([index, np.full(n_pad - n, index[0] if n else 0)])
+    geom = np.stack([np.sin(g.theta_h[full]), np.cos(g.theta_h[full]), np.cos(g.theta_d[full]),
+                     g.cos_i[full], g.cos_o[full], g.weight[full]])
+    if weight_scale is not None:
+        geom[5, :n] *= weight_scale
+    geom = geom.astype(dtype)
+    geom[5, n:] = 0
+    mf = cl.mem_flags
+    geom_buf = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=geom)
+    per_mat = 3 * n_pad * np.dtype(dtype).itemsize
+    max_alloc = max_alloc or ctx.devices[0].max_mem_alloc_size
+    per_block = max(1, int(max_alloc // per_mat))
+    blocks = []
+    for first in range(0, len(names), per_block):
+        chunk = np.full((min(per_block, len(names) - first), 3, n_pad), np.nan, dtype=dtype)
+        chunk[:, :, :n] = data[first:first + per_block]
+        blocks.append((first, len(chunk), cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=chunk)))
+    return CellSet(list(names), index, n_pad, dtype, geom, blocks, geom_buf)
+
+
+class Engine:
+    """A model compiled for one device and metric; evaluates batches over a CellSet."""
+
+    def __init__(self, model: Model | str, device=None, real="float", metric="log", cosw=True,
+                 vector_width=None, verify=True, **options):
+        """``vector_width``: cells per work-item on a CPU (default: brdfcl.device.width's tested choice);
+        ``verify``: self-test the program against the float64 reference before it is used."""
+        self.model = Model(model) if isinstance(model, str) else model
+        self.ctx, self.queue, self.device, self.platform = context_for(device)
+        if real == "double" and not has_fp64(self.device):
+            raise ValueError(f"device {self.device.name} has no float64 support")
+        self.width = None
+        if "vw" not in options and is_cpu(self.device):
+            self.width = width.choose(self.platform, self.device, real, vector_width, log=_log.info)
+            options["vw"] = self.width.width
+        self.opt = default_options(self.device, real, metric=metric, cosw=cosw, **options)
+        self.dtype = np.float32 if real == "float" else np.float64
+        self.source = render(self.model, self.opt)
+        self.reported = tuple(METRICS)      # the errors kernel's sums, in order (brdfcl.model.metrics)
+        self.pairs = jtj_pairs(self.model)
+        self.n_out = n_outputs(self.model, len(self.pairs))
+        self.program, self.self_test = self._compile(verify)
+        self._kernels = {k: cl.Kernel(self.program, k) for k in KERNELS}
+
+    def _compile(self, verify):
+        """The program for this source, built once per process and device; a build whose kernels
+        are missing or that fails the self-test is built again under a fresh cache key."""
+        key = (hashlib.sha1(self.source.encode()).hexdigest(), self.device.int_ptr)
+        if key in _PROGRAMS and (_PROGRAMS[key][1] is not None or not verify):
+            return _PROGRAMS[key]
+        repair_pocl_cache(self.platform, log=_log.warning)
+        failures = []
+        with crash_guard(self.source, self.device, log=_log.warning) as first:
+            for attempt in (first, first + 1):
+                try:
+                    program, self._kernels = build(self.ctx, self.device, self.source, attempt)
+                except ProgramError as e:
+                    failures.append(str(e))
+                    continue
+                result = selftest.check(self) if verify else None
+                if result is None or result.ok:
+                    if failures:
+                        _log.warning(f"brdfcl: rebuilt the {self.model.spec} program on {self.device.name}: "
+                                     f"the cached build failed ({failures[0]})")
+                    _PROGRAMS[key] = (program, result)
+                    return _PROGRAMS[key]
+                failures.append(f"self-test {result.detail}")
+        hint = (f"; try a narrower --vector-width (or {width.ENV}) than {self.opt.vw}"
+                if self.opt.vw > 1 else "")
+        raise ProgramError(f"the {self.model.spec} program ({self.opt.real}, vector width {self.opt.vw}) "
+                           f"does not work on {self.device.name}: {failures[-1]}{hint}")
+
+    # --- data ------------------------------------------------------------------------------------
+    def cellset(self, tables, index=None, cutoff_deg=DEFAULT_CUTOFF_DEG, **kw) -> CellSet:
+        """A cell set of the given tables (MerlTable objects) at the given cells."""
+        index = select_cells(cutoff_deg) if index is None else np.asarray(index)
+        names, (data,) = extract(tables, [index], self.dtype)
+        return self.upload(names, index, data, **kw)
+
+    def upload(self, names, index, data, **kw) -> CellSet:
+        """A cell set from values already extracted at ``index`` (see `extract`)."""
+        return build_cellset(self.ctx, names, index, data, self.dtype, pad_to=max(16, self.opt.vw), **kw)
+
+    # --- launches --------------------------------------------------------------------------------
+    def _params(self, values):
+        values = np.atleast_2d(np.asarray(values, dtype=np.float64))
+        return np.concatenate([values, self.model.consts(values)], axis=1).astype(self.dtype)
+
+    def _run(self, kname, cs: CellSet, values, mats):
+        values = np.atleast_2d(values)
+        mats = np.broadcast_to(np.asarray(mats, dtype=np.int32), (values.shape[0],))
+        nout = self.n_out[kname]
+        n_vec = cs.n_cells // self.opt.vw
+        ng = max(1, -(-n_vec // self.opt.chunk))
+        out = np.zeros((values.shape[0], nout))
+        prm_all = self._params(values)
+        kern = self._kernels[kname]
+        mf = cl.mem_flags
+        for first, count, dbuf in cs.blocks:
+            sel = np.flatnonzero((mats >= first) & (mats < first + count))
+            if sel.size == 0:
+                continue
+            prm = cl.Buffer(self.ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=np.ascontiguousarray(prm_all[sel]))
+            mat = cl.Buffer(self.ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=(mats[sel] - first).astype(np.int32))
+            part = np.empty((sel.size, ng, nout), dtype=self.dtype)
+            obuf = cl.Buffer(self.ctx, mf.WRITE_ONLY, part.nbytes)
+            kern(self.queue, (sel.size, ng * self.opt.local), (1, self.opt.local),
+                 cs.geom_buf, np.int32(cs.n_cells), dbuf, prm, mat, obuf)
+            cl.enqueue_copy(self.queue, part, obuf)
+            out[sel] = part.sum(axis=1, dtype=np.float64)
+        return out
+
+    def loss(self, cs, values, mats):
+        """sum w r^2 per evaluation, shape (n,)."""
+        return self._run("loss", cs, values, mats)[:, 0]
+
+    def grad(self, cs, values, mats):
+        """(loss (n,), gradient of the loss w.r.t. the free natural parameters (n, n_free))."""
+        o = self._run("grad", cs, values, mats)
+        return o[:, 0], 2.0 * o[:, 1:]
+
+    def jtj(self, cs, values, mats):
+        """(loss, J^T W r (n, k), J^T W J (n, k, k)) for Gauss-Newton steps."""
+        o = self._run("jtj", cs, values, mats)
+        k = self.model.n_free
+        H = np.zeros((o.shape[0], k, k))
+        for i, (a, b) in enumerate(self.pairs):
+            H[:, a, b] = H[:, b, a] = o[:, 1 + k + i]
+        return o[:, 0], o[:, 1:1 + k], H
+
+    def errors(self, cs, values, mats):
+        """Reported errors (brdfcl.model.metrics) per evaluation: dict of arrays."""
+        o = self._run("errors", cs, values, mats)
+        n = len(self.reported)
+        sw = np.maximum(o[:, n + 1], 1e-300)
+        out = {f"rmse_{name}": np.sqrt(o[:, i] / sw) for i, name in enumerate(self.reported)}
+        out["rel_rmse"] = np.sqrt(o[:, self.reported.index("l2")] / np.maximum(o[:, n], 1e-300))
+        return out
+
+    def tabulate(self, values):
+        """Model values (3, N_CELLS) over the whole table for one parameter vector, NaN below the
+        horizon (for exporting a fit as a MERL file); the table's geometry is uploaded once."""
+        if getattr(self, "_table_cs", None) is None:
+            idx = np.flatnonzero(table_geometry().above_horizon)
+            self._table_cs = self.upload([], idx, np.zeros((0, 3, idx.size), self.dtype))
+        out = np.full((3, table_geometry().weight.size), np.nan)
+        out[:, self._table_cs.index] = self.predict(self._table_cs, values)[0]
+        return out
+
+    def predict(self, cs, values):
+        """Model values (n, 3, cells of the set) for each parameter vector."""
+        values = np.atleast_2d(values)
+        prm = cl.Buffer(self.ctx, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
+                        hostbuf=self._params(values))
+        out = np.empty((values.shape[0], 3, cs.n_cells), dtype=self.dtype)
+        obuf = cl.Buffer(self.ctx, cl.mem_flags.WRITE_ONLY, out.nbytes)
+        n_vec = cs.n_cells // self.opt.vw
+        lw = 64 if self.opt.local > 1 else 1
+        self._kernels["predict"](self.queue, (values.shape[0], -(-n_vec // lw) * lw), None,
+                                 cs.geom_buf, np.int32(cs.n_cells), prm, obuf)
+        cl.enqueue_copy(self.queue, out, obuf)
+        return out[:, :, :cs.index.size]

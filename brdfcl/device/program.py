@@ -1,0 +1,241 @@
+"""Building a generated OpenCL program so that a broken kernel cache cannot break a run.
+
+PoCL keeps compiled programs in a cache (``POCL_CACHE_DIR``, default
+``~/.cache/pocl``).  A process that crashed while compiling can leave entries
+behind that make every later run fail: a truncated ``program.bc`` (the kernels
+are then missing: ``INVALID_KERNEL_NAME``) or a truncated kernel library
+(PoCL aborts the whole process when it cannot load it).  So, before the first
+build of a process, broken kernel libraries are removed from PoCL's cache (they
+are recompiled on demand), and a program whose kernels are missing, or that
+fails the caller's check, is built again under a different cache key.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import shutil
+import struct
+from contextlib import contextmanager
+from pathlib import Path
+
+import pyopencl as cl
+
+from brdfcl.device.platforms import DeviceError
+
+KERNELS = ("loss", "grad", "jtj", "errors", "predict")
+BUILD_OPTIONS = ["-cl-mad-enable"]
+ABI_WARNING = "changes the ABI"     # LLVM, when vector arguments are wider than the target
+_REPAIRED: set = set()
+
+
+class ProgramError(DeviceError):
+    """A program that cannot be built or used on a device; the message is one line."""
+
+
+def pocl_cache_dir(platform) -> Path | None:
+    """PoCL's kernel cache for a PoCL platform (None for other platforms)."""
+    if "portable computing" not in platform.name.lower():
+        return None
+    base = os.environ.get("POCL_CACHE_DIR")
+    if not base:
+        xdg = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+        base = os.path.join(xdg, "pocl")
+    return Path(base) / "kcache" if (Path(base) / "kcache").is_dir() else Path(base)
+
+
+def sound_elf(path: Path) -> bool:
+    """True when a file is a complete 64- or 32-bit ELF object: magic, and every header table
+    inside the file (a truncated or overwritten library fails this)."""
+    try:
+        size = path.stat().st_size
+        with open(path, "rb") as f:
+            head = f.read(64)
+    except OSError:
+        return False
+    if len(head) < 52 or head[:4] != b"\x7fELF" or head[4] not in (1, 2) or head[5] not in (1, 2):
+        return False
+    end = "<" if head[5] == 1 else ">"
+    if head[4] == 2:
+        if len(head) < 64:
+            return False
+        phoff, shoff = struct.unpack_from(end + "QQ", head, 32)
+        phentsize, phnum, shentsize, shnum = struct.unpack_from(end + "HHHH", head, 54)
+    else:
+        phoff, shoff = struct.unpack_from(end + "II", head, 28)
+        phentsize, phnum, shentsize, shnum = struct.unpack_from(end + "HHHH", head, 42)
+    return phoff + phentsize * phnum <= size and shoff + shentsize * shnum <= size
+
+
+def sound_bitcode(path: Path) -> bool:
+    """True when a file is complete LLVM bitcode: its magic, then top-level blocks whose
+    recorded lengths add up to the file's length (a truncated file fails this)."""
+    try:
+        data = path.read_bytes()
+    except OSError:
+        return False
+    if data[:4] == b"\xde\xc0\x17\x0b":                      # bitcode wrapper header
+        if len(data) < 20:
+            return False
+        offset, size = struct.unpack_from("<II", data, 8)
+        if offset + size > len(data):
+            return False
+        data = data[offset:offset + size]
+    if data[:4] != b"BC\xc0\xde":
+        return False
+    bits = int.from_bytes(data, "little")
+    total, pos = 8 * len(data), 32
+
+    def read(n):
+        nonlocal pos
+        if pos + n > total:
+            raise EOFError
+        v = (bits >> pos) & ((1 << n) - 1)
+        pos += n
+        return v
+
+    def vbr(n):
+        v, shift = 0, 0
+        while True:
+            chunk = read(n)
+            v |= (chunk & ((1 << (n - 1)) - 1)) << shift
+            shift += n - 1
+            if not chunk >> (n - 1):
+                return v
+    blocks = 0
+    try:
+        while total - pos >= 32 and bits >> pos:               # zero words may pad the end
+            if read(2) != 1:                                   # top level holds only blocks
+                return False
+            blocks += 1
+            vbr(8)                                             # block id
+            vbr(4)                                             # abbreviation width
+            pos = -(-pos // 32) * 32
+            words = read(32)                                   # block length in 32-bit words
+            pos += 32 * words
+        return blocks > 0 and pos <= total and not bits >> pos
+    except EOFError:
+        return False
+
+
+def _sound(path: Path) -> bool:
+    return sound_bitcode(path) if path.suffix == ".bc" else sound_elf(path)
+
+
+def cache_dir() -> Path:
+    """brdfcl's own cache: ``BRDFCL_CACHE_DIR``, else ``$XDG_CACHE_HOME/brdfcl`` or ``~/.cache/brdfcl``."""
+    base = os.environ.get("BRDFCL_CACHE_DIR")
+    if not base:
+        xdg = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+        base = os.path.join(xdg, "brdfcl")
+    return Path(base)
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OSError):
+        return True
+    return True
+
+
+@contextmanager
+def crash_guard(source: str, device, log=None):
+    """Yields the cache-key attempt to build ``source`` with.  A marker file says this process is
+    building and testing the program; a marker left by a process that died there (PoCL aborts
+    the whole process on some broken cache entries, which no check in Python can catch) moves
+    this program to the next cache key for good, so one crash does not break every later run."""
+    key = hashlib.sha1(f"{device.name}\0{device.driver_version}\0{source}".encode()).hexdigest()[:20]
+    d = cache_dir() / "building"
+    salts = cache_dir() / "program-keys.json"
+    try:
+        d.mkdir(parents=True, exist_ok=True)
+        attempt = int(read_json(salts).get(key, 0))
+        dead = [m for m in d.glob(f"{key}.*") if m.suffix[1:].isdigit() and not _alive(int(m.suffix[1:]))]
+        if dead:
+            attempt += 1
+            update_json(salts, key, attempt)
+            for m in dead:
+                m.unlink(missing_ok=True)
+            if log:
+                log(f"brdfcl: a run died building or testing this program on {device.name}; "
+                    f"building it under a new PoCL cache key")
+        marker = d / f"{key}.{os.getpid()}"
+        marker.write_text("")
+    except OSError:                     # no writable cache: build without the guard
+        yield 0
+        return
+    try:
+        yield attempt
+    finally:
+        marker.unlink(missing_ok=True)
+
+
+def read_json(path: Path) -> dict:
+    """A JSON object of brdfcl's cache; {} when it is missing or not one."""
+    try:
+        d = json.loads(path.read_text())
+        return d if isinstance(d, dict) else {}
+    except (OSError, ValueError):
+        return {}
+
+
+def update_json(path: Path, key: str, value) -> None:
+    """Set one key of a JSON object in brdfcl's cache, replacing the file atomically."""
+    d = read_json(path)
+    d[key] = value
+    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
+    tmp.write_text(json.dumps(d, indent=1, sort_keys=True))
+    os.replace(tmp, path)
+
+
+def repair_pocl_cache(platform, log=None) -> list:
+    """Remove cache entries whose program bitcode or kernel libraries are incomplete (PoCL
+    rebuilds them); once per process and cache.  Returns the removed entry folders."""
+    root = pocl_cache_dir(platform)
+    if root is None or root in _REPAIRED or not root.is_dir():
+        return []
+    _REPAIRED.add(root)
+    removed = []
+    files = [(p, p.parent) for p in root.glob("*/*/*.bc")] + [(p, p.parents[2]) for p in root.glob("*/*/*/*/*.so")]
+    for path, entry in files:
+        if entry in removed or _sound(path):
+            continue
+        shutil.rmtree(entry, ignore_errors=True)
+        removed.append(entry)
+    if removed and log:
+        log(f"brdfcl: removed a broken PoCL kernel-cache entr{'y' if len(removed) == 1 else f'ies ({len(removed)})'}"
+            f" from {root}; PoCL compiles them again")
+    return removed
+
+
+def build(ctx, device, source: str, attempt: int = 0):
+    """(program, {name: kernel}) for a source; ``attempt`` > 0 builds it under a new cache key."""
+    options = list(BUILD_OPTIONS)
+    if attempt:
+        # PoCL's cache key hashes the preprocessed source (comments are gone) and the build
+        # options: a define in the options gives a fresh, separate entry.
+        options.append(f"-DBRDFCL_CACHE_KEY={attempt}")
+    try:
+        program = cl.Program(ctx, source).build(options=options, devices=[device])
+        kernels = {k: cl.Kernel(program, k) for k in KERNELS}
+    except cl.Error as e:
+        raise ProgramError(f"OpenCL build failed on {device.name}: {_what(e)}") from None
+    return program, kernels
+
+
+def build_log(program, device) -> str:
+    try:
+        return program.get_build_info(device, cl.program_build_info.LOG) or ""
+    except cl.Error:
+        return ""
+
+
+def _what(e) -> str:
+    """A pyopencl error as one readable line (its default str can be a bare object repr)."""
+    rec = e.args[0] if e.args else None
+    what = getattr(rec, "what", None)
+    text = what() if callable(what) else (what or str(e))
+    return " ".join(str(text).split())[:300]

@@ -1,0 +1,123 @@
+"""OpenCL source for one model, specialised from its lobe descriptions.
+
+Only the terms the model uses are included; only free parameters get a Jacobian
+column; J^T J accumulates only the pairs that are structurally non-zero in
+some channel (an amplitude of channel c touches channel c alone).  Fixed
+parameters are plain constants that the compiler folds away.
+"""
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass
+from functools import cache, lru_cache
+from pathlib import Path
+
+from mako.template import Template
+
+from brdfcl.model.compose import Model
+from brdfcl.model.lobes.lobe import Emitter
+from brdfcl.model.metrics import IMPLEMENTED_METRICS, check_metric
+
+
+def kernel_dir() -> Path:
+    """The OpenCL sources: the folder of this module (they ship in the wheel as package data)."""
+    here = Path(__file__).resolve().parent
+    if not (here / "model.cl.mako").is_file():
+        raise FileNotFoundError(f"brdfcl's OpenCL kernels are missing from {here}: reinstall brdfcl")
+    return here
+
+
+@cache
+def read_kernel(rel: str) -> str:
+    """A kernel source file (relative to kernel_dir()), read once per process."""
+    return (kernel_dir() / rel).read_text()
+
+
+@lru_cache(maxsize=1)
+def kernel_sources_hash() -> str:
+    """A hash of every kernel source, the template and the metrics' C expressions: decisions
+    cached about compiled programs (brdfcl.device.width) are stale once any of them changes."""
+    h = hashlib.sha1()
+    for p in sorted(kernel_dir().rglob("*")):
+        if p.suffix in (".cl", ".mako"):
+            h.update(p.relative_to(kernel_dir()).as_posix().encode() + b"\0" + p.read_bytes())
+    for m in IMPLEMENTED_METRICS.values():
+        h.update("\0".join((m.name, *m.c("x", "g"))).encode())
+    return h.hexdigest()
+
+
+@lru_cache(maxsize=1)
+def _template() -> Template:
+    return Template(filename=str(kernel_dir() / "model.cl.mako"), strict_undefined=True)
+
+
+@dataclass(frozen=True)
+class KernelOptions:
+    real: str = "float"         # "float" or "double"
+    vw: int = 8                 # cells per vector (1 on GPUs)
+    local: int = 1              # work-group size along cells
+    chunk: int = 256            # vectors per work-group
+    metric: str = "log"
+    cosw: bool = True           # cos(theta_i) factor in the residual
+
+    def __post_init__(self):
+        check_metric(self.metric)
+        if self.real not in ("float", "double"):
+            raise ValueError(f"precision '{self.real}': valid are float, double")
+        if self.vw not in (1, 2, 4, 8, 16) or self.local < 1 or self.local & (self.local - 1):
+            raise ValueError(f"vector width {self.vw} / local size {self.local}: powers of two expected")
+
+
+class _Ctx:
+    def __init__(self, model):
+        self.model = model
+
+    def c(self, slot_name):
+        return "P_" + slot_name.replace(".", "_")
+
+
+def emit(model: Model) -> Emitter:
+    em = Emitter(model.column)
+    ctx = _Ctx(model)
+    for lb in model.lobes:
+        lb.emit(em, ctx)
+    return em
+
+
+def kernel_files(model: Model) -> list:
+    """The term source files a model's program includes, each once, in the order first used."""
+    return list(dict.fromkeys(t.kernel for lb in model.lobes for t in lb.terms))
+
+
+def render(model: Model, opt: KernelOptions) -> str:
+    em = emit(model)
+    files = kernel_files(model)
+    cols = set()
+    pairs = jtj_pairs(model)
+    for ch in range(3):
+        cols |= set(em.jac[ch])
+    assert cols == set(range(model.n_free)), "every free parameter needs a Jacobian column"
+    vec = "" if opt.vw == 1 else str(opt.vw)
+    fit_g, fit_dg = IMPLEMENTED_METRICS[opt.metric].c("x", "g")    # metric_g / metric_dg
+    return _template().render(
+        spec=model.spec, real=opt.real, vw=opt.vw, wg=opt.local, chunk=opt.chunk,
+        metric=opt.metric, cosw=opt.cosw, metric_g=fit_g, metric_dg=fit_dg,
+        reported=[(m.name, m.c("xp")[0], m.c("xm")[0]) for m in IMPLEMENTED_METRICS.values()],
+        real_v=opt.real + vec, cond_v=("int" if opt.real == "float" else "long") + vec,
+        common=read_kernel("common.cl"), sources=[read_kernel(f) for f in files],
+        slots=model.slots, n_slots=model.n_params,
+        consts=["K_" + k.replace(".", "_") for k in model.const_names],
+        n_prm=model.n_params + len(model.const_names), n_free=model.n_free,
+        lines=em.lines, value=em.value, jac=em.jac, pairs=pairs)
+
+
+def jtj_pairs(model: Model):
+    """The (a, b), a <= b, entries of J^T J that are non-zero in some channel, in kernel order."""
+    em = emit(model)
+    return sorted({(a, b) for ch in range(3) for a in em.jac[ch] for b in em.jac[ch] if b >= a})
+
+
+def n_outputs(model: Model, n_pairs: int) -> dict:
+    """Partial sums each kernel writes per evaluation and work-group."""
+    return {"loss": 1, "grad": 1 + model.n_free, "jtj": 1 + model.n_free + n_pairs,
+            "errors": len(IMPLEMENTED_METRICS) + 2}      # sum w r^2 per metric, sum w x_m^2, sum w

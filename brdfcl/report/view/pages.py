@@ -1,0 +1,257 @@
+"""One report for a run: a comparison page across materials and a page per material.
+
+``OUT/report/index.html`` holds a table of every material (sphere thumbnails, errors in each
+metric, parameters, verdict where the run analysed, flags) that sorts on a click on its
+header; ``OUT/report/NAME.html`` shows one material at a readable size: parameters with their
+standard errors, directional albedo, flags, lit spheres (measured | fitted | difference),
+slices and the analysis figures where there are some.  Plain files that work offline: no
+script or style from elsewhere.  `brdfcl fit-all` and `brdfcl analyze` both write it.
+"""
+from __future__ import annotations
+
+import html
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from brdfcl.model.compose import Model
+from brdfcl.report.figures import writing
+from brdfcl.report.view.slices import write_slices
+from brdfcl.report.view.sphere import DEFAULT_LIGHTS, write_spheres
+
+METRICS = ("rmse_log", "rmse_l2", "rmse_cbrt", "rel_rmse")
+# key, grazing and environment light: ~4 s a material with the slices (the environment costs most)
+REPORT_LIGHTS = tuple(light for light in DEFAULT_LIGHTS if light[0] in ("key", "grazing", "env"))
+STYLE = """body{font-family:sans-serif;margin:1em auto;max-width:1400px;color:#222}
+table{border-collapse:collapse}td,th{border:1px solid #ccc;padding:3px 6px;font-size:13px;text-align:right}
+th{background:#f3f3f3;cursor:pointer;vertical-align:bottom}td.l,th.l{text-align:left}
+th.sorted-up::after{content:" \\25B2"}th.sorted-down::after{content:" \\25BC"}
+img.thumb{height:56px;display:block}.figs img.sphere{max-width:1000px}
+.figs img{display:block;width:100%;max-width:1400px;height:auto;margin:.4em 0 1.2em}
+.diffraction{background:#fde8d8}.none{background:#e3eefc}.flag{color:#a00}small{color:#666}"""
+SORT_JS = """document.querySelectorAll('table.sortable').forEach(function(t){
+ t.querySelectorAll('th').forEach(function(th,i){th.addEventListener('click',function(){
+  var up=!th.classList.contains('sorted-up');
+  t.querySelectorAll('th').forEach(function(h){h.classList.remove('sorted-up','sorted-down');});
+  th.classList.add(up?'sorted-up':'sorted-down');
+  var rows=Array.prototype.slice.call(t.tBodies[0].rows);
+  rows.sort(function(a,b){var x=a.cells[i].dataset.v,y=b.cells[i].dataset.v;
+   var nx=parseFloat(x),ny=parseFloat(y);var c=(isNaN(nx)||isNaN(ny))?String(x).localeCompare(y):nx-ny;
+   return up?c:-c;});
+  rows.forEach(function(r){t.tBodies[0].appendChild(r);});});});});"""
+
+
+@dataclass
+class Entry:
+    """What the report shows of one material, from a fit result or an analysis."""
+
+    name: str
+    model: str
+    params: dict                          # name -> fitted value
+    errors: dict
+    status: str
+    table: str | None = None              # path of the measured table
+    verdict: str | None = None
+    figures: list = field(default_factory=list)   # analysis figure paths
+    uncertainty: dict | None = None
+    albedo: dict | None = None
+    flags: list = field(default_factory=list)
+
+    @classmethod
+    def from_document(cls, doc, table=None, **kw):
+        """From a NAME.json document (brdfcl.report.output.result_document)."""
+        return cls(doc["material"], doc["model"], {k: v["value"] for k, v in doc["params"].items()},
+                   doc["errors"], doc["status"], table, uncertainty=doc.get("uncertainty"),
+                   albedo=doc.get("albedo"), flags=list(doc.get("flags") or []), **kw)
+
+    @classmethod
+    def from_result(cls, res, table=None, **kw):
+        """From a brdfcl.optim.fit.FitResult."""
+        return cls(res.name, res.model, dict(res.params), res.errors, res.status, table,
+                   uncertainty=getattr(res, "uncertainty", None), albedo=getattr(res, "albedo", None),
+                   flags=list(getattr(res, "flags", None) or []), **kw)
+
+
+def write_report(out, entries, read_table, title="brdfcl fits", log=None) -> Path:
+    """Write ``OUT/report/``: images per material (drawn again only when the fit or the table
+    changed), one page per material and the comparison page.  ``read_table(path)`` reads a
+    measured table."""
+    rep = Path(out) / "report"
+    rep.mkdir(parents=True, exist_ok=True)
+    for e in entries:
+        images = material_images(rep, e, read_table)
+        _write(rep / f"{e.name}.html", material_page(e, images, rep))
+        if log:
+            log(f"report: {e.name}")
+    _write(rep / "index.html", comparison_page(entries, title, rep))
+    return rep / "index.html"
+
+
+def material_images(rep, e, read_table) -> dict:
+    """Spheres and slices of a material in ``rep/NAME/`` (kept when newer than its table and fit)."""
+    d = rep / e.name
+    if e.table is None or not os.path.exists(e.table):
+        return {}
+    stamp = _stamp(d)
+    key = f"{e.model}|{sorted(e.params.items())}|{os.path.getmtime(e.table)}"
+    if stamp == key:
+        return _existing(d, e.name)
+    table = read_table(e.table)
+    spheres = write_spheres(d, e.name, table, Model(e.model), e.params, lights=REPORT_LIGHTS, size=128,
+                            env_size=64)
+    slices = write_slices(d, e.name, table, Model(e.model), e.params)
+    (d / ".stamp").write_text(key)
+    return _classify(spheres + slices, e.name)
+
+
+def _stamp(d):
+    try:
+        return (d / ".stamp").read_text()
+    except OSError:
+        return None
+
+
+def _existing(d, name):
+    return _classify(sorted(d.iterdir()), name)
+
+
+def _classify(paths, name):
+    pngs = [Path(p) for p in paths if str(p).endswith(".png")]
+    return {"thumb": [p for p in pngs if p.name == f"{name}-thumb.png"],
+            "spheres": [p for p in pngs if "-sphere-" in p.name],
+            "slices": [p for p in pngs if p.name.endswith(("-slices.png", "-lobes.png"))],
+            "exr": [Path(p) for p in paths if str(p).endswith(".exr")]}
+
+
+def _groups(params):
+    """Parameter columns: per-channel parameters of one name grouped (``ct.rho`` for its r, g, b)."""
+    groups = {}
+    for k in params:
+        base, _, ch = k.rpartition("_")
+        key = base if ch in ("r", "g", "b") and base else k
+        groups.setdefault(key, []).append(k)
+    return groups
+
+
+def comparison_page(entries, title, rep) -> str:
+    groups: dict[str, list[str]] = {}
+    for e in entries:
+        for g, ks in _groups(e.params).items():
+            groups.setdefault(g, ks)
+    analysed = any(e.verdict for e in entries)
+    heads = ["", "material"] + (["verdict"] if analysed else []) + list(METRICS) + list(groups) + ["status", "flags"]
+    h = [_head(title), f"<h1>{html.escape(title)}</h1>",
+         f"<p>{len(entries)} materials. Click a column header to sort; a material's name opens its page "
+         "(spheres, slices, parameters with standard errors). Thumbnails: measured | fitted under the "
+         "key light. Per-channel parameters show r / g / b and sort by their mean.</p>",
+         "<table class='sortable'><thead><tr>"]
+    h += [f"<th class='{'l' if i < 3 else ''}'>{html.escape(c)}</th>" for i, c in enumerate(heads)]
+    h.append("</tr></thead><tbody>")
+    for e in entries:
+        thumb = f"{e.name}/{e.name}-thumb.png"
+        cells = [_td(f"<img class='thumb' src='{_q(thumb)}' alt='{html.escape(e.name)} sphere'>", "", "l")
+                 if (rep / thumb).exists() else _td("", ""),
+                 _td(f"<a href='{_q(e.name)}.html'>{html.escape(e.name)}</a>", e.name, "l")]
+        if analysed:
+            cells.append(_td(html.escape(e.verdict or ""), e.verdict or "", "l"))
+        cells += [_num(e.errors.get(m)) for m in METRICS]
+        for ks in groups.values():
+            vals = [e.params[k] for k in ks if k in e.params]
+            cells.append(_td(" / ".join(f"{v:.3g}" for v in vals), sum(vals) / len(vals) if vals else ""))
+        short = e.status.split(" (")[0]
+        status = f"<span title='{html.escape(e.status, quote=True)}'>{html.escape(short)}</span>"
+        cells.append(_td(status, e.status, "l"))
+        tip = html.escape("\n".join(e.flags), quote=True)
+        cells.append(_td(f"<span class='flag' title='{tip}'>{len(e.flags)}</span>" if e.flags else "0", len(e.flags)))
+        h.append(f"<tr class='{html.escape(e.verdict or '')}'>" + "".join(cells) + "</tr>")
+    h += ["</tbody></table>", f"<script>{SORT_JS}</script>"]
+    return "\n".join(h)
+
+
+def material_page(e, images, rep) -> str:
+    h = [_head(e.name), "<p><a href='index.html'>&larr; all materials</a></p>",
+         f"<h1>{html.escape(e.name)}</h1>",
+         f"<p>model <code>{html.escape(e.model)}</code>; status {html.escape(e.status)}"
+         + (f"; verdict <b>{html.escape(e.verdict)}</b>" if e.verdict else "") + "</p>",
+         "<table><tr>" + "".join(f"<th>{m}</th>" for m in METRICS) + "</tr><tr>"
+         + "".join(_num(e.errors.get(m)) for m in METRICS) + "</tr></table>"]
+    if e.flags:
+        h.append("<h2>Flags</h2><ul>" + "".join(f"<li class='flag'>{html.escape(f)}</li>" for f in e.flags) + "</ul>")
+    h.append("<h2>Parameters</h2>" + _param_table(e))
+    if e.albedo:
+        h.append("<h2>Directional albedo of the fit</h2>" + _albedo_table(e.albedo))
+    for key, head in (("spheres", "Lit spheres: measured | fitted | difference"),
+                      ("slices", "Slices: BRDF x cos against the outgoing angle, and the lobes")):
+        if images.get(key):
+            h.append(f"<h2>{head}</h2><div class='figs'>")
+            h += [f"<img class='{key[:-1]}' src='{_q(os.path.relpath(p, rep))}' alt='{html.escape(p.name)}'>"
+                  for p in images[key]]
+            h.append("</div>")
+    if images.get("exr"):
+        h.append("<p><small>Linear images: " + ", ".join(
+            f"<a href='{_q(os.path.relpath(p, rep))}'>{html.escape(p.name)}</a>" for p in images["exr"])
+                 + "</small></p>")
+    if e.figures:
+        h.append("<h2>Analysis</h2><div class='figs'>")
+        h += [f"<img src='{_q(os.path.relpath(p, rep))}' alt='{html.escape(Path(p).name)}'>" for p in e.figures]
+        h.append("</div>")
+    return "\n".join(h)
+
+
+def _param_table(e):
+    se = (e.uncertainty or {}).get("std_error") or {}
+    model = Model(e.model)
+    rows = ["<table><tr><th class='l'>parameter</th><th>value</th><th>standard error</th>"
+            "<th class='l'>unit</th><th>bounds</th></tr>"]
+    for s in model.slots:
+        v = e.params.get(s.name)
+        err = se.get(s.name)
+        rows.append(f"<tr><td class='l'>{html.escape(s.name)}</td>{_num(v)}"
+                    f"<td>{'' if err is None else f'{err:.3g}'}</td>"
+                    f"<td class='l'>{html.escape(s.param.unit or '')}</td>"
+                    f"<td>{s.param.lo:.3g} .. {s.param.hi:.3g}</td></tr>")
+    rows.append("</table>")
+    if e.uncertainty and e.uncertainty.get("method"):
+        rows.append(f"<p><small>{html.escape(e.uncertainty['method'])}</small></p>")
+    return "".join(rows)
+
+
+def _albedo_table(albedo):
+    angles, vals = albedo.get("theta_i_deg", []), albedo.get("channels", [])
+    rows = ["<table><tr><th class='l'>theta_i (deg)</th>" + "".join(f"<th>{a:g}</th>" for a in angles) + "</tr>"]
+    for c, name in enumerate("RGB"):
+        rows.append(f"<tr><td class='l'>{name}</td>" + "".join(
+            f"<td class='{'flag' if v[c] > 1 else ''}'>{v[c]:.3f}</td>" for v in vals) + "</tr>")
+    return "".join(rows) + "</table>"
+
+
+def _head(title):
+    return (f"<!doctype html><html lang='en'><meta charset='utf-8'><title>{html.escape(title)}</title>"
+            f"<link rel='icon' href='data:,'><style>{STYLE}</style>")
+
+
+def _td(content, sort_value, cls=""):
+    return f"<td class='{cls}' data-v='{html.escape(str(sort_value), quote=True)}'>{content}</td>"
+
+
+def _num(v):
+    return _td("" if v is None else f"{v:.4g}", "" if v is None else v)
+
+
+def _q(path):
+    from urllib.parse import quote
+    return quote(str(path).replace(os.sep, "/"))
+
+
+def _write(path, text):
+    """Atomically, and not at all when the page is unchanged (a resumed run touches nothing)."""
+    text += "\n"
+    try:
+        if path.read_text() == text:
+            return
+    except OSError:
+        pass
+    with writing(path):
+        tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
+        tmp.write_text(text)
+        os.replace(tmp, path)
