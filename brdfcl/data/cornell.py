@@ -1,0 +1,93 @@
+"""Reader of the Cornell ``.brdf`` ASCII format of spectral gonioreflectometer measurements.
+
+Layout (as read by pbrt-v2's measured BRDF, which ships such files)::
+
+    # comments start with '#', anywhere on a line; blank lines are ignored
+    31                                   the number N of wavelengths
+    400 410 ... 700                      N wavelengths in nm, wrapped over any number of lines
+    theta_i phi_i theta_s phi_s v_1 ... v_N      one sample per line, angles in radians
+
+``v_k`` is the BRDF (1/sr) at wavelength k.  theta_i, theta_s must lie in [0, pi/2] and phi in
+[-2 pi, 2 pi]; ``phi`` of both directions is measured in one frame (phi_s = phi_i + pi is the
+specular side).  The count may share its line with the first wavelengths.  Unlike pbrt's
+token-stream reader, a sample must sit on one line: a wrong column count is then reported at
+the line that has it instead of shifting every later sample.
+"""
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+from .errors import DataError, parse_numbers, read_text
+from .samples import Channel, Samples, make_samples
+
+SUFFIX = ".brdf"
+WAVELENGTH_RANGE_NM = (100.0, 100000.0)
+"""Wavelengths outside this range are refused: they are not nm (um given by mistake, say)."""
+
+
+def read_cornell(path: str | os.PathLike[str]) -> Samples:
+    """Read one Cornell ``.brdf`` file; DataError (one line: file, line, problem) if malformed."""
+    lines = [(k + 1, line.split("#", 1)[0].split()) for k, line in enumerate(read_text(path).split("\n"))]
+    lines = [(k, fields) for k, fields in lines if fields]
+    if not lines:
+        raise DataError(path, "no numbers: only comments and blank lines")
+
+    k0, first = lines[0]
+    try:
+        count_f = float(first[0])
+    except ValueError:
+        count_f = float("nan")
+    if not (np.isfinite(count_f) and count_f == int(count_f)):
+        raise DataError(path, f"expected the number of wavelengths, found {first[0][:20]!r}", k0)
+    count = int(count_f)
+    if count < 1:
+        raise DataError(path, f"number of wavelengths {count}: must be at least 1", k0)
+
+    wls: list[float] = []
+    wl_lines: list[int] = []
+    pending = [(k0, first[1:])] + lines[1:]
+    body = len(pending)
+    for j, (k, fields) in enumerate(pending):
+        take = fields[: count - len(wls)]
+        wls += parse_numbers(path, k, take)
+        wl_lines += [k] * len(take)
+        if len(wls) == count:
+            if len(take) < len(fields):
+                raise DataError(path, f"the header announces {count} wavelengths but the list does not end "
+                                      f"there: {len(fields) - len(take)} more numbers follow on this line "
+                                      "(the count and the list disagree)", k)
+            body = j + 1
+            break
+    else:
+        raise DataError(path, f"the header announces {count} wavelengths but the file holds only {len(wls)} "
+                              "numbers after it: no samples")
+    channels = _channels(path, wls, wl_lines)
+
+    width = 4 + count
+    rows, where = [], []
+    for k, fields in pending[body:]:
+        if len(fields) != width:
+            raise DataError(path, f"{len(fields)} numbers, expected {width} (4 angles + {count} values)", k)
+        rows.append(parse_numbers(path, k, fields))
+        where.append(k)
+    if not rows:
+        raise DataError(path, "no samples after the wavelength list")
+    a = np.array(rows, dtype=np.float64)
+    return make_samples(path, a[:, 0], a[:, 1], a[:, 2], a[:, 3], a[:, 4:], channels, lines=where)
+
+
+def _channels(path: str | os.PathLike[str], wls_nm: list[float], lines: list[int]) -> tuple[Channel, ...]:
+    lo, hi = WAVELENGTH_RANGE_NM
+    seen: set[float] = set()
+    for x, line in zip(wls_nm, lines):
+        if x <= 0:
+            raise DataError(path, f"{'negative' if x < 0 else 'zero'} wavelength {x:g} nm", line)
+        if not lo <= x <= hi:
+            raise DataError(path, f"wavelength {x:g} nm out of range [{lo:g}, {hi:g}] nm (the format gives nm)",
+                            line)
+        if x in seen:
+            raise DataError(path, f"repeated wavelength {x:g} nm", line)
+        seen.add(x)
+    return tuple(Channel(f"{x:g}nm", x / 1000.0) for x in wls_nm)

@@ -1,0 +1,58 @@
+"""Measurement readers by file suffix: one registry that ``read_samples`` and
+``find_measurements`` (a folder mixing formats) both read.
+
+To add a format, map its suffix (lower case, with the dot) to a callable taking the path and
+returning ``Samples``; a ``DataError`` with one line naming the file is its way to refuse a
+malformed file::
+
+    READERS[".binary"] = read_merl_samples      # MERL tables, registered by their module
+
+The longest registered suffix that ends a file's name wins (``.brdf.gz`` before ``.gz``).
+"""
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+from pathlib import Path
+
+from .cornell import read_cornell
+from .csvsamples import read_csv
+from .errors import DataError
+from .samples import Samples
+
+Reader = Callable[[Path], Samples]
+
+READERS: dict[str, Reader] = {
+    ".brdf": read_cornell,
+    ".csv": read_csv,
+}
+"""Suffix -> reader.  The hook for more formats (MERL ``.binary``): add an entry."""
+
+
+def reader_for(path: str | os.PathLike[str]) -> Reader | None:
+    """The reader registered for this file's name, or None."""
+    name = Path(path).name.lower()
+    found = [s for s in READERS if name.endswith(s) and len(name) > len(s)]
+    return READERS[max(found, key=len)] if found else None
+
+
+def read_samples(path: str | os.PathLike[str]) -> Samples:
+    """Read one measurement file with the reader its suffix names; DataError if none does."""
+    reader = reader_for(path)
+    if reader is None:
+        known = ", ".join(sorted(READERS))
+        raise DataError(path, f"unknown format: no reader for this suffix (known: {known})")
+    return reader(Path(path))
+
+
+def find_measurements(folder: str | os.PathLike[str]) -> list[Path]:
+    """The files of a folder (not its subfolders) that a registered reader reads, sorted by
+    name; hidden files are skipped.  DataError if the folder cannot be listed."""
+    root = Path(folder)
+    if not root.is_dir():
+        raise DataError(folder, "not a folder" if root.exists() else "no such folder")
+    try:
+        entries = sorted(root.iterdir(), key=lambda p: p.name)
+    except OSError as e:
+        raise DataError(folder, f"cannot list: {e.strerror or e}") from None
+    return [p for p in entries if not p.name.startswith(".") and p.is_file() and reader_for(p) is not None]
