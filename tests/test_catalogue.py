@@ -3,8 +3,8 @@ import subprocess
 import sys
 from pathlib import Path
 
-from brdfcl.model.lobes.catalogue import terms_markdown
-from brdfcl.model.lobes.spec import REGISTRY
+from brdfcl.model.catalogue import source_file, terms_markdown
+from brdfcl.model.terms import REGISTRY
 
 DOC = Path(__file__).resolve().parents[1] / "docs" / "terms.md"
 
@@ -17,7 +17,7 @@ def test_every_registered_term_is_listed_with_its_parameters():
     text = terms_markdown()
     for kind in REGISTRY.values():
         for t in kind.values():
-            assert f"| `{t.name}` |" in text and f"kernels/{t.kernel}" in text
+            assert f"| `{t.name}` |" in text and source_file(t) in text
             for p in t.params:
                 assert f"`{p.name}`" in text
 

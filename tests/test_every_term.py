@@ -12,7 +12,7 @@ from brdfcl.device import selftest
 from brdfcl.device.engine import Engine
 from brdfcl.model.compose import CT_NDFS, SHADOWING_ALIASES, Model
 from brdfcl.model.lobes.cells import Cells
-from brdfcl.model.lobes.spec import REGISTRY
+from brdfcl.model.terms import REGISTRY
 
 
 def spec_for(kind, name):

@@ -17,7 +17,7 @@ from brdfcl.device import selftest, width
 from brdfcl.device.engine import Engine
 from brdfcl.device.platforms import all_devices, pocl_version
 from brdfcl.device.program import ProgramError, sound_bitcode, sound_elf
-from brdfcl.optim.fit import FitOptions, fit_tables
+from brdfcl.optim.fit import FitOptions, fit_tables, select_cells
 
 POCL = [f"{i}" for i, (p, d) in enumerate(all_devices()) if "portable computing" in p.name.lower()]
 
@@ -94,12 +94,23 @@ def test_self_test_catches_a_program_that_does_not_match_its_description():
 
 
 def test_forced_narrower_width_gives_the_same_fits(demo_db):
+    """A narrower width computes the same numbers (to float32 rounding: the compiler vectorises
+    each width differently) and so the same fits.  A fit in a flat valley may stop at another
+    point of it after different roundings: measured 1.6e-5 relative in loss on synth-fabric."""
     tables = [read_merl(demo_db / f"{n}.binary") for n in ("synth-smooth-metal", "synth-fabric")]
+    evaluated = {}
+    for w in (16, 2):
+        eng = Engine("diffuse+diffraction+ggx", vector_width=w)
+        m = eng.model
+        x = m.search_x_lo + np.random.default_rng(0).random((12, m.n_free)) * (m.search_x_hi - m.search_x_lo)
+        evaluated[w] = eng.grad(eng.cellset(tables, select_cells(None)), m.from_x(x), np.arange(12) % 2)
+    for a, b in zip(evaluated[16], evaluated[2]):
+        np.testing.assert_allclose(b, a, rtol=1e-6, atol=1e-6 * np.abs(a).max())
     base = fit_tables(tables, FitOptions(model="diffuse+diffraction+ggx"))
     narrow = fit_tables(tables, FitOptions(model="diffuse+diffraction+ggx", vector_width=2))
     for a, b in zip(base, narrow):
         assert a.success and b.success
-        assert b.loss == pytest.approx(a.loss, rel=1e-6), (a.name, a.loss, b.loss)
+        assert b.loss == pytest.approx(a.loss, rel=1e-4, abs=1e-12), (a.name, a.loss, b.loss)
 
 
 def test_sound_file_checks(tmp_path):

@@ -10,7 +10,8 @@ from brdfcl.data.geometry import table_geometry
 from brdfcl.model.compose import Model
 from brdfcl.model.lobes import REGISTRY
 from brdfcl.model.lobes.cells import Cells
-from brdfcl.model.lobes.ndf import _upper_gamma, sgd_consts
+from brdfcl.model.terms.ndf.sgd import sgd_consts
+from brdfcl.model.terms.ndf.sgd import upper_gamma as _upper_gamma
 
 LOBES = ["diffuse", "diffraction:hp", "diffraction:abc:schlick", "diffraction:gauss:conductor",
          "diffraction:hp:dielectric", "ggx:smith:schlick", "ggx:smith-hc:dielectric",

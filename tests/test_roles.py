@@ -67,7 +67,7 @@ def test_generated_c_names_are_unique():
                 names += [w for w in words if w not in ("const", "real", "real_v")]
             assert len(names) == len(set(names)), [n for n in names if names.count(n) > 1]
             assert any(n.startswith("ct2_") for n in names)
-            assert any(n.startswith("dr2_") for n in names) == ("diffraction" in spec)
+            assert any(n.startswith("diffraction2_") for n in names) == ("diffraction" in spec)
             src = render(m, KernelOptions())
             assert "P_ct2_alpha" in src and ("P_diffraction2_c" in src) == ("diffraction" in spec)
             assert len(jtj_pairs(m)) == len(set(jtj_pairs(m)))

@@ -168,7 +168,7 @@ def cmd_export(args):
 
 def cmd_terms(args):
     """Every registered term as Markdown (docs/terms.md is this output)."""
-    from brdfcl.model.lobes.catalogue import terms_markdown
+    from brdfcl.model.catalogue import terms_markdown
     print(terms_markdown())
     return 0
 

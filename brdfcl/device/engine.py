@@ -58,8 +58,9 @@ def default_options(device, real="float", **kw) -> KernelOptions:
 class CellSet:
     """Selected cells of the table for a list of materials, on one device.
 
-    Geometry rows: sin th, cos th, cos td, cos ti, cos to, weight.  Data:
-    (material, channel, cell), NaN where a cell is missing.  Padded to a multiple
+    Geometry rows: sin th, cos th, cos td, cos ti, cos to, weight: one geometry for all
+    materials (MERL tables, ``geo_stride`` 0) or one per material (scattered samples,
+    ``geom_host`` (n_mat, 6, n)).  Data: (material, channel, cell), NaN where a cell is missing.  Padded to a multiple
     of the vector width with copies of the first cell at weight 0."""
 
     names: list
@@ -69,13 +70,23 @@ class CellSet:
     geom_host: np.ndarray
     blocks: list = field(default_factory=list)   # [(first material, count, data buffer)]
     geom_buf: Any = None              # cl.Buffer of geom_host
+    per_material: list | None = None  # scattered samples: each material's float64 Cells
+
+    @property
+    def geo_stride(self) -> int:
+        """Offset between materials' geometries in the buffer (0: shared)."""
+        return 0 if self.per_material is None else 6 * self.n_cells
+
+    n_channels: int = 3
 
     @property
     def n_materials(self):
         return len(self.names)
 
-    def cells(self) -> Cells:
-        """float64 reference cells of this set (unpadded)."""
+    def cells(self, mat: int = 0) -> Cells:
+        """float64 reference cells of this set (unpadded; of material ``mat`` for scattered data)."""
+        if self.per_material is not None:
+            return self.per_material[mat]
         return Cells.from_geometry(table_geometry(), self.index)
 
     def block_of(self, mat):
@@ -92,7 +103,7 @@ def select_cells(cutoff_deg=DEFAULT_CUTOFF_DEG, stride=1, offset=0):
 
 
 def extract(tables, indices, dtype=np.float32, on_error=None):
-    """Read each table once and keep its values at each index set: (names, [(n_mat, 3, n_i)]).
+    """Read each table once and keep its values at each index set: (names, [(n_mat, C, n_i)]).
 
     ``tables`` yields MerlTable objects or callables returning one (files are read lazily);
     a table that raises is reported to ``on_error(item, exc)`` and skipped (re-raised if None)."""
@@ -110,12 +121,13 @@ def extract(tables, indices, dtype=np.float32, on_error=None):
         for lst, idx in zip(parts, indices):
             lst.append(brdf[:, idx].astype(dtype))
         del brdf
-    return names, [np.stack(p) if p else np.zeros((0, 3, idx.size), dtype) for p, idx in zip(parts, indices)]
+    return names, [np.stack(p) if p else np.zeros((0, 3, idx.size), dtype)     # MERL: 3 channels
+                   for p, idx in zip(parts, indices)]
 
 
 def build_cellset(ctx, names, index, data, dtype=np.float32, pad_to=16, weight_scale=None,
                   max_alloc=None):
-    """Upload geometry and per-material data (n_mat, 3, n) for the given table cells."""
+    """Upload geometry and per-material data (n_mat, C, n) for the given table cells."""
     g = table_geometry()
     n = index.size
     n_pad = max(pad_to, -(-n // pad_to) * pad_to)
@@ -128,15 +140,47 @@ def build_cellset(ctx, names, index, data, dtype=np.float32, pad_to=16, weight_s
     geom[5, n:] = 0
     mf = cl.mem_flags
     geom_buf = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=geom)
-    per_mat = 3 * n_pad * np.dtype(dtype).itemsize
+    blocks = _data_blocks(ctx, data, n, n_pad, dtype, max_alloc)
+    return CellSet(list(names), index, n_pad, dtype, geom, blocks, geom_buf, n_channels=data.shape[1])
+
+
+def _data_blocks(ctx, data, n, n_pad, dtype, max_alloc=None):
+    """Per-material data (n_mat, C, n) padded to n_pad with NaN, in buffers under the device's
+    largest allocation: [(first material, count, buffer)]."""
+    n_ch = data.shape[1]
+    per_mat = n_ch * n_pad * np.dtype(dtype).itemsize
     max_alloc = max_alloc or ctx.devices[0].max_mem_alloc_size
     per_block = max(1, int(max_alloc // per_mat))
     blocks = []
-    for first in range(0, len(names), per_block):
-        chunk = np.full((min(per_block, len(names) - first), 3, n_pad), np.nan, dtype=dtype)
+    for first in range(0, len(data), per_block):
+        chunk = np.full((min(per_block, len(data) - first), n_ch, n_pad), np.nan, dtype=dtype)
         chunk[:, :, :n] = data[first:first + per_block]
-        blocks.append((first, len(chunk), cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=chunk)))
-    return CellSet(list(names), index, n_pad, dtype, geom, blocks, geom_buf)
+        blocks.append((first, len(chunk), cl.Buffer(ctx, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
+                                                    hostbuf=chunk)))
+    return blocks
+
+
+def build_sample_cellset(ctx, names, cells, weights, values, dtype=np.float32, pad_to=16, max_alloc=None):
+    """Upload scattered measurements: per material its Cells, weights (n_i,) and values (C, n_i),
+    padded to the longest at weight 0 (materials may hold different sample counts)."""
+    n_ch = {v.shape[0] for v in values}
+    if len(n_ch) > 1:
+        raise ValueError(f"materials with {sorted(n_ch)} channels cannot share one cell set")
+    longest = max((len(c) for c in cells), default=0)
+    n_pad = max(pad_to, -(-longest // pad_to) * pad_to)
+    geom = np.zeros((len(cells), 6, n_pad))
+    data = np.full((len(cells), n_ch.pop() if n_ch else 3, n_pad), np.nan)
+    geom[:, :5] = 0.5                      # padding: a harmless cell (weight 0)
+    for m, (c, w, v) in enumerate(zip(cells, weights, values)):
+        k = len(c)
+        geom[m, :, :k] = np.stack([c.sh, c.ch, c.cd, c.ci, c.co, w])
+        data[m, :, :k] = v
+    geom = geom.astype(dtype)
+    geom_buf = cl.Buffer(ctx, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR, hostbuf=geom)
+    blocks = _data_blocks(ctx, data, n_pad, n_pad, dtype, max_alloc)
+    index = np.arange(longest)
+    return CellSet(list(names), index, n_pad, dtype, geom, blocks, geom_buf, per_material=list(cells),
+                   n_channels=data.shape[1])
 
 
 class Engine:
@@ -202,6 +246,16 @@ class Engine:
         """A cell set from values already extracted at ``index`` (see `extract`)."""
         return build_cellset(self.ctx, names, index, data, self.dtype, pad_to=max(16, self.opt.vw), **kw)
 
+    def upload_samples(self, names, cells, weights, values) -> CellSet:
+        """A cell set of scattered measurements, each material with its own geometry (see
+        `build_sample_cellset`); the model's channels must match the values' (C, n_i)."""
+        bad = [n for n, v in zip(names, values) if v.shape[0] != self.model.n_channels]
+        if bad:
+            raise ValueError(f"{bad[0]}: {values[names.index(bad[0])].shape[0]} channels, but the model "
+                             f"has {self.model.n_channels}")
+        return build_sample_cellset(self.ctx, names, cells, weights, values, self.dtype,
+                                    pad_to=max(16, self.opt.vw))
+
     # --- launches --------------------------------------------------------------------------------
     def _params(self, values):
         values = np.atleast_2d(np.asarray(values, dtype=np.float64))
@@ -226,7 +280,7 @@ class Engine:
             part = np.empty((sel.size, ng, nout), dtype=self.dtype)
             obuf = cl.Buffer(self.ctx, mf.WRITE_ONLY, part.nbytes)
             kern(self.queue, (sel.size, ng * self.opt.local), (1, self.opt.local),
-                 cs.geom_buf, np.int32(cs.n_cells), dbuf, prm, mat, obuf)
+                 cs.geom_buf, np.int32(cs.n_cells), np.int32(cs.geo_stride), np.int32(first), dbuf, prm, mat, obuf)
             cl.enqueue_copy(self.queue, part, obuf)
             out[sel] = part.sum(axis=1, dtype=np.float64)
         return out
@@ -259,25 +313,28 @@ class Engine:
         return out
 
     def tabulate(self, values):
-        """Model values (3, N_CELLS) over the whole table for one parameter vector, NaN below the
+        """Model values (C, N_CELLS) over the whole table for one parameter vector, NaN below the
         horizon (for exporting a fit as a MERL file); the table's geometry is uploaded once."""
         if getattr(self, "_table_cs", None) is None:
             idx = np.flatnonzero(table_geometry().above_horizon)
-            self._table_cs = self.upload([], idx, np.zeros((0, 3, idx.size), self.dtype))
-        out = np.full((3, table_geometry().weight.size), np.nan)
+            self._table_cs = self.upload([], idx, np.zeros((0, self.model.n_channels, idx.size), self.dtype))
+        out = np.full((self.model.n_channels, table_geometry().weight.size), np.nan)
         out[:, self._table_cs.index] = self.predict(self._table_cs, values)[0]
         return out
 
-    def predict(self, cs, values):
-        """Model values (n, 3, cells of the set) for each parameter vector."""
+    def predict(self, cs, values, mats=0):
+        """Model values (n, C, cells of the set) for each parameter vector (of material ``mats``:
+        its geometry, for scattered samples)."""
         values = np.atleast_2d(values)
         prm = cl.Buffer(self.ctx, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
                         hostbuf=self._params(values))
-        out = np.empty((values.shape[0], 3, cs.n_cells), dtype=self.dtype)
+        out = np.empty((values.shape[0], self.model.n_channels, cs.n_cells), dtype=self.dtype)
+        mat = cl.Buffer(self.ctx, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
+                        hostbuf=np.broadcast_to(np.asarray(mats, dtype=np.int32), (values.shape[0],)).copy())
         obuf = cl.Buffer(self.ctx, cl.mem_flags.WRITE_ONLY, out.nbytes)
         n_vec = cs.n_cells // self.opt.vw
         lw = 64 if self.opt.local > 1 else 1
         self._kernels["predict"](self.queue, (values.shape[0], -(-n_vec // lw) * lw), None,
-                                 cs.geom_buf, np.int32(cs.n_cells), prm, obuf)
+                                 cs.geom_buf, np.int32(cs.n_cells), np.int32(cs.geo_stride), prm, mat, obuf)
         cl.enqueue_copy(self.queue, out, obuf)
         return out[:, :, :cs.index.size]

@@ -86,7 +86,7 @@ def check(engine) -> SelfTest:
         p, lr, gr, jr = _reference(model, cells, meas, w, v, opt.metric, opt.cosw)
         checks = {"predict": (P[k], p), "loss": (L3[k], lr), "grad loss": (L[k], lr), "grad": (G[k], gr),
                   "jtj loss": (L2[k], lr), "jtj J^T W r": (JTr[k], jr),
-                  "errors": (E[f"rmse_{opt.metric}"][k] ** 2 * 3 * np.sum(w), lr)}
+                  "errors": (E[f"rmse_{opt.metric}"][k] ** 2 * model.n_channels * np.sum(w), lr)}
         for name, (got, want) in checks.items():
             err = _rel(got, want)
             if not err <= worst:

@@ -14,9 +14,11 @@ from pathlib import Path
 
 from mako.template import Template
 
+from brdfcl.kernels.terms import c_source
 from brdfcl.model.compose import Model
 from brdfcl.model.lobes.lobe import Emitter
 from brdfcl.model.metrics import IMPLEMENTED_METRICS, check_metric
+from brdfcl.model.terms import REGISTRY
 
 
 def kernel_dir() -> Path:
@@ -41,6 +43,9 @@ def kernel_sources_hash() -> str:
     for p in sorted(kernel_dir().rglob("*")):
         if p.suffix in (".cl", ".mako"):
             h.update(p.relative_to(kernel_dir()).as_posix().encode() + b"\0" + p.read_bytes())
+    for kind in REGISTRY.values():
+        for t in kind.values():
+            h.update(c_source(t).encode())
     for m in IMPLEMENTED_METRICS.values():
         h.update("\0".join((m.name, *m.c("x", "g"))).encode())
     return h.hexdigest()
@@ -68,33 +73,23 @@ class KernelOptions:
             raise ValueError(f"vector width {self.vw} / local size {self.local}: powers of two expected")
 
 
-class _Ctx:
-    def __init__(self, model):
-        self.model = model
-
-    def c(self, slot_name):
-        return "P_" + slot_name.replace(".", "_")
-
-
 def emit(model: Model) -> Emitter:
-    em = Emitter(model.column)
-    ctx = _Ctx(model)
+    em = Emitter(model.column, model.n_channels)
     for lb in model.lobes:
-        lb.emit(em, ctx)
+        lb.emit(em)
     return em
 
 
-def kernel_files(model: Model) -> list:
-    """The term source files a model's program includes, each once, in the order first used."""
-    return list(dict.fromkeys(t.kernel for lb in model.lobes for t in lb.terms))
+def term_sources(model: Model) -> list[str]:
+    """The OpenCL functions of the terms a model uses, each once, in the order first used."""
+    return [c_source(t) for t in dict.fromkeys(t for lb in model.lobes for t in lb.terms)]
 
 
 def render(model: Model, opt: KernelOptions) -> str:
     em = emit(model)
-    files = kernel_files(model)
     cols = set()
     pairs = jtj_pairs(model)
-    for ch in range(3):
+    for ch in range(model.n_channels):
         cols |= set(em.jac[ch])
     assert cols == set(range(model.n_free)), "every free parameter needs a Jacobian column"
     vec = "" if opt.vw == 1 else str(opt.vw)
@@ -104,8 +99,8 @@ def render(model: Model, opt: KernelOptions) -> str:
         metric=opt.metric, cosw=opt.cosw, metric_g=fit_g, metric_dg=fit_dg,
         reported=[(m.name, m.c("xp")[0], m.c("xm")[0]) for m in IMPLEMENTED_METRICS.values()],
         real_v=opt.real + vec, cond_v=("int" if opt.real == "float" else "long") + vec,
-        common=read_kernel("common.cl"), sources=[read_kernel(f) for f in files],
-        slots=model.slots, n_slots=model.n_params,
+        common=read_kernel("common.cl"), sources=term_sources(model),
+        slots=model.slots, n_slots=model.n_params, n_ch=model.n_channels,
         consts=["K_" + k.replace(".", "_") for k in model.const_names],
         n_prm=model.n_params + len(model.const_names), n_free=model.n_free,
         lines=em.lines, value=em.value, jac=em.jac, pairs=pairs)
@@ -114,7 +109,7 @@ def render(model: Model, opt: KernelOptions) -> str:
 def jtj_pairs(model: Model):
     """The (a, b), a <= b, entries of J^T J that are non-zero in some channel, in kernel order."""
     em = emit(model)
-    return sorted({(a, b) for ch in range(3) for a in em.jac[ch] for b in em.jac[ch] if b >= a})
+    return sorted({(a, b) for ch in range(model.n_channels) for a in em.jac[ch] for b in em.jac[ch] if b >= a})
 
 
 def n_outputs(model: Model, n_pairs: int) -> dict:

@@ -59,26 +59,27 @@ inline real hsum(real_v v)
 % for k in consts:
     const real ${k} = P[${n_slots + loop.index}];
 % endfor
-    __global const real *M = data + (size_t)mat[e] * 3 * n_cells;
+    __global const real *M = data + (size_t)mat[e] * ${n_ch} * n_cells;
+    __global const real *G = geom + (size_t)(mat[e] + mat0) * geo_stride;    /* 0: one geometry for all */
     const int v0 = g * ${chunk}, v1 = min(v0 + ${chunk}, n_cells / ${vw});
 </%def>
 
 <%def name="cell_and_model()">
         const int o = v * ${vw};
-        cell_t c = make_cell(VLOAD(geom, o), VLOAD(geom, n_cells + o), VLOAD(geom, 2 * n_cells + o),
-                             VLOAD(geom, 3 * n_cells + o), VLOAD(geom, 4 * n_cells + o));
-        const real_v w = VLOAD(geom, 5 * n_cells + o);
+        cell_t c = make_cell(VLOAD(G, o), VLOAD(G, n_cells + o), VLOAD(G, 2 * n_cells + o),
+                             VLOAD(G, 3 * n_cells + o), VLOAD(G, 4 * n_cells + o));
+        const real_v w = VLOAD(G, 5 * n_cells + o);
 % for line in lines:
         ${line}
 % endfor
-% for ch in range(3):
+% for ch in range(n_ch):
         const real_v p${ch} = ${' + '.join(value[ch]) if value[ch] else '(real_v)0'};
 % endfor
 </%def>
 
 <%def name="residuals()">
         const real_v cw = ${'c.ci' if cosw else '(real_v)1'};
-% for ch in range(3):
+% for ch in range(n_ch):
         const real_v m${ch} = VLOAD(M, ${ch} * n_cells + o);
         const real_v x${ch} = p${ch} * cw;
         const real_v g${ch} = metric_g(x${ch});
@@ -107,7 +108,8 @@ inline real hsum(real_v v)
 % endfor
 </%def>
 
-#define KARGS __global const real *geom, const int n_cells, __global const real *data, \
+#define KARGS __global const real *geom, const int n_cells, const int geo_stride, const int mat0, \
+              __global const real *data, \
               __global const real *prm, __global const int *mat, __global real *out
 
 /* loss = sum w r^2 */
@@ -118,7 +120,7 @@ ${prologue()}
     for (int v = v0 + lid; v < v1; v += ${wg}) {
 ${cell_and_model()}
 ${residuals()}
-% for ch in range(3):
+% for ch in range(n_ch):
         acc_l += w${ch} * r${ch} * r${ch};
 % endfor
     }
@@ -136,7 +138,7 @@ ${prologue()}
     for (int v = v0 + lid; v < v1; v += ${wg}) {
 ${cell_and_model()}
 ${residuals()}
-% for ch in range(3):
+% for ch in range(n_ch):
         {
         acc_l += w${ch} * r${ch} * r${ch};
         const real_v q = w${ch} * r${ch} * metric_dg(x${ch}, g${ch}) * cw;
@@ -163,7 +165,7 @@ ${prologue()}
     for (int v = v0 + lid; v < v1; v += ${wg}) {
 ${cell_and_model()}
 ${residuals()}
-% for ch in range(3):
+% for ch in range(n_ch):
         {
         acc_l += w${ch} * r${ch} * r${ch};
         const real_v dg = metric_dg(x${ch}, g${ch}) * cw;
@@ -195,7 +197,7 @@ ${prologue()}
     for (int v = v0 + lid; v < v1; v += ${wg}) {
 ${cell_and_model()}
         const real_v cw = ${'c.ci' if cosw else '(real_v)1'};
-% for ch in range(3):
+% for ch in range(n_ch):
         {
         const real_v m = VLOAD(M, ${ch} * n_cells + o);
         const real_v ww = SEL(w, (real_v)0, isnan(m));
@@ -214,14 +216,16 @@ ${cell_and_model()}
 ${reduce_and_write(['err_' + n for n, _, _ in reported] + ['acc_mm', 'acc_w'])}
 }
 
-/* model values at every cell of the set for one parameter vector per evaluation: out (e, 3, n) */
-__kernel void predict(__global const real *geom, const int n_cells, __global const real *prm,
-                      __global real *out)
+/* model values at every cell of the set for one parameter vector per evaluation: out (e, ${n_ch}, n);
+ * evaluation e uses the geometry of material mat[e] (geo_stride 0: one geometry for all) */
+__kernel void predict(__global const real *geom, const int n_cells, const int geo_stride,
+                      __global const real *prm, __global const int *mat, __global real *out)
 {
     const int e = get_global_id(0);
     const int v = get_global_id(1);
     if (v >= n_cells / ${vw}) return;
     __global const real *P = prm + (size_t)e * ${n_prm};
+    __global const real *G = geom + (size_t)mat[e] * geo_stride;
 % for s in slots:
     const real ${s.cname} = P[${loop.index}];
 % endfor
@@ -230,11 +234,11 @@ __kernel void predict(__global const real *geom, const int n_cells, __global con
 % endfor
     {
 ${cell_and_model()}
-% for ch in range(3):
+% for ch in range(n_ch):
 % if vw == 1:
-        out[((size_t)e * 3 + ${ch}) * n_cells + o] = p${ch};
+        out[((size_t)e * ${n_ch} + ${ch}) * n_cells + o] = p${ch};
 % else:
-        vstore${vw}(p${ch}, 0, out + ((size_t)e * 3 + ${ch}) * n_cells + o);
+        vstore${vw}(p${ch}, 0, out + ((size_t)e * ${n_ch} + ${ch}) * n_cells + o);
 % endif
 % endfor
     }

@@ -20,7 +20,7 @@ from functools import cached_property
 import numpy as np
 
 from brdfcl.model.lobes import LAMBDAS, REGISTRY, CookTorrance, Diffraction, Diffuse
-from brdfcl.model.lobes.lobe import ROLES, Lobe, Slot
+from brdfcl.model.lobes.lobe import ROLES, Lobe, Slot, channel_names
 
 DEFAULT_MODEL = "diffuse+diffraction+ggx"
 CT_NDFS = tuple(REGISTRY["ndf"])
@@ -43,7 +43,7 @@ def parse_lobe(text: str, lambdas=LAMBDAS) -> Lobe:
     if name == "diffuse":
         if opts:
             raise ModelError(f"'{text}': diffuse takes no options")
-        return Diffuse()
+        return Diffuse(lambdas=lambdas)
     if name == "diffraction":
         kw = {}
         for o in opts:
@@ -62,7 +62,7 @@ def parse_lobe(text: str, lambdas=LAMBDAS) -> Lobe:
             else:
                 raise ModelError(f"'{text}': bad option '{o}'; {_valid_text()}")
         try:
-            return CookTorrance(name, **kw)
+            return CookTorrance(name, lambdas=lambdas, **kw)
         except (ValueError, KeyError) as e:
             raise ModelError(f"'{text}': {e}") from None
     raise ModelError(f"unknown lobe '{name}' in '{text}'; {_valid_text()}")
@@ -124,6 +124,15 @@ class Model:
 
     def __repr__(self):
         return f"Model('{self.spec}', {len(self.free_index)} free parameters)"
+
+    @property
+    def n_channels(self) -> int:
+        return len(self.lambdas)
+
+    @property
+    def channels(self) -> tuple[str, ...]:
+        """Channel names as parameter names use them (r, g, b; or wavelengths: 550nm)."""
+        return channel_names(self.lambdas)
 
     @property
     def n_params(self):
@@ -246,11 +255,11 @@ class Model:
         def value(name):
             return values[..., self._pos[name]]
 
-        p = np.zeros((3, len(cells)), dtype=dt)
-        J = np.zeros((3, len(cells), self.n_free), dtype=dt) if jacobian else None
+        p = np.zeros((self.n_channels, len(cells)), dtype=dt)
+        J = np.zeros((self.n_channels, len(cells), self.n_free), dtype=dt) if jacobian else None
         for lb in self.lobes:
             vals, jacs = lb.reference(cells, value, consts)
-            for ch in range(3):
+            for ch in range(self.n_channels):
                 p[ch] += vals[ch]
                 if jacobian:
                     for name, d in jacs[ch].items():

@@ -1,8 +1,8 @@
-"""Lobe and term descriptions with their float64 references (docs/spec.md section 3)."""
-from brdfcl.model.lobes import fresnel, ndf, psd, shadowing  # noqa: F401  (register the terms)
+"""The lobes a model sums: each an amplitude per channel times a product of terms."""
 from brdfcl.model.lobes.cooktorrance import CookTorrance
-from brdfcl.model.lobes.diffraction import LAMBDAS, Diffraction
+from brdfcl.model.lobes.diffraction import Diffraction
 from brdfcl.model.lobes.diffuse import Diffuse
-from brdfcl.model.lobes.spec import REGISTRY, Param, Term
+from brdfcl.model.lobes.lobe import LAMBDAS, ROLES, Lobe
+from brdfcl.model.terms import REGISTRY, Param, Term
 
-__all__ = ["CookTorrance", "Diffraction", "Diffuse", "LAMBDAS", "REGISTRY", "Param", "Term"]
+__all__ = ["CookTorrance", "Diffraction", "Diffuse", "LAMBDAS", "REGISTRY", "ROLES", "Lobe", "Param", "Term"]

@@ -51,6 +51,11 @@ class Cells:
         return 2.0 * self.sh * self.cd
 
     @property
+    def s5(self):
+        """(1 - cos theta_d)^5, Schlick's factor."""
+        return (1.0 - self.cd) ** 5
+
+    @property
     def t2i(self):
         return (1.0 - self.ci ** 2) / self.ci ** 2
 

@@ -3,10 +3,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from brdfcl.model.lobes.lobe import Lobe
-from brdfcl.model.lobes.spec import Param
+from brdfcl.model.lobes.lobe import Known, Lobe
+from brdfcl.model.terms import Param
 
 RHO_D = Param("rho", 1e-6, 1.0, 0.1, log=True, per_channel=True, doc="diffuse albedo", search=(1e-3, 1.0))
+INV_PI = Known("INV_PI_R", lambda cells: 1.0 / np.pi)
 
 
 class Diffuse(Lobe):
@@ -14,19 +15,12 @@ class Diffuse(Lobe):
     role = "diffuse"
     amplitude = RHO_D
 
+    def __init__(self, lambdas=None):
+        if lambdas is not None:
+            self.lambdas = tuple(float(x) for x in lambdas)
+
     def spec(self):
         return "diffuse"
 
-    def reference(self, cells, value, consts):
-        vals, jacs = [], []
-        for ch in range(3):
-            rho = self.slot_name("rho", ch)
-            vals.append(np.full(len(cells), value(rho) / np.pi))
-            jacs.append({rho: np.full(len(cells), 1.0 / np.pi)})
-        return vals, jacs
-
-    def emit(self, em, ctx):
-        for ch in range(3):
-            rho = self.slot_name("rho", ch)
-            em.add(ch, f"{ctx.c(rho)} * INV_PI_R")
-            em.add_jac(ch, rho, "INV_PI_R")
+    def parts(self, ch):
+        return INV_PI, []

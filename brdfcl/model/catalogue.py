@@ -6,8 +6,7 @@ descriptions themselves, so the documentation cannot drift from the code.
 """
 from __future__ import annotations
 
-from brdfcl.model.lobes import fresnel, ndf, psd, shadowing  # noqa: F401  (importing them registers their terms)
-from brdfcl.model.lobes.spec import REGISTRY, Param, Term
+from brdfcl.model.terms import REGISTRY, Param, Term
 
 KINDS = {"ndf": "Normal distributions D (Cook-Torrance lobes: `ggx`, `beckmann`, `sgd`, `epd`)",
          "shadowing": "Shadowing and masking G (`smith` picks the one defined for the D)",
@@ -30,17 +29,23 @@ def _row(t: Term) -> str:
         params += f"; uses the D's `{'`, `'.join(t.uses)}`"
     only = f" (for {', '.join(t.ndfs)})" if t.ndfs else ""
     cells = [f"`{t.name}`", t.doc.replace("|", "\\|") + only, params, t.cite.replace("|", "\\|") or "-",
-             f"`kernels/{t.kernel}`"]
+             f"`{source_file(t)}`"]
     return "| " + " | ".join(cells) + " |"
+
+
+def source_file(t: Term) -> str:
+    """The file that writes a term's formula, relative to the repository (``brdfcl/model/terms/ndf/ggx.py``)."""
+    return t.origin.replace(".", "/") + ".py"
 
 
 def terms_markdown() -> str:
     """Every registered term, grouped by kind, as Markdown."""
     out = [HEADER, "", "# Terms", "",
-           "Every term a model can use, as registered in `brdfcl/lobes/` (each with its float64 "
-           "reference and its OpenCL function).", ""]
+           "Every term a model can use, as registered in `brdfcl/model/terms/`: each file writes "
+           "one formula, from which its derivatives, its float64 reference and its OpenCL "
+           "function are generated.", ""]
     for kind, title in KINDS.items():
-        out += [f"## {title}", "", "| name | what | parameters | source | kernel |", "|---|---|---|---|---|"]
+        out += [f"## {title}", "", "| name | what | parameters | source | formula |", "|---|---|---|---|---|"]
         out += [_row(t) for t in REGISTRY[kind].values()]
         out.append("")
     return "\n".join(out)

@@ -1,0 +1,13 @@
+"""Gaussian PSD S(f) = exp(-f^2/a^2), for comparison."""
+from sympy import exp
+
+from brdfcl.model.terms.base import Term, register
+from brdfcl.model.terms.psd.hp import A
+from brdfcl.model.terms.symbols import f
+
+
+def gauss(a):
+    return exp(-((f / a) ** 2))
+
+
+register(Term("psd", "gauss", (A,), gauss, doc="Gaussian, for comparison"))
