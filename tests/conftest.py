@@ -37,6 +37,21 @@ def proxy_files(names):
     return [PROXY_CACHE / f"{n}.binary" for n in names]
 
 
+KRYLON = SHARED / "data" / "cornell" / "krylon_blue.brdf"
+
+
+@pytest.fixture(scope="session")
+def krylon():
+    """The real Cornell spectral measurement (brdfcl.data.samples.Samples)."""
+    from brdfcl.data.readers import read_samples
+    if not KRYLON.exists():
+        why = f"Cornell measurement not available: {KRYLON} is missing (set BRDFCL_SHARED)"
+        if os.environ.get("BRDFCL_REQUIRE_SHARED") == "1":
+            pytest.fail(why)
+        pytest.skip(why)
+    return read_samples(KRYLON)
+
+
 @pytest.fixture(scope="session")
 def proxy_pair():
     return proxy_files(["aluminium", "specular-red-phenolic"])

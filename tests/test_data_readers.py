@@ -2,7 +2,6 @@
 one-line DataError naming the file for every malformed file."""
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
@@ -15,20 +14,7 @@ from brdfcl.data.errors import DataError
 from brdfcl.data.readers import READERS, find_measurements, read_samples
 from brdfcl.data.samples import Channel, make_samples, rgb_channels
 from brdfcl.data.weights import DOMAIN_MEASURE
-from tests.conftest import SHARED
-
-KRYLON = SHARED / "data" / "cornell" / "krylon_blue.brdf"
-
-
-@pytest.fixture(scope="module")
-def krylon():
-    if not KRYLON.exists():
-        why = f"Cornell measurement not available: {KRYLON} is missing (set BRDFCL_SHARED)"
-        if os.environ.get("BRDFCL_REQUIRE_SHARED") == "1":
-            pytest.fail(why)
-        pytest.skip(why)
-    return read_samples(KRYLON)
-
+from tests.conftest import KRYLON
 
 # ---------------------------------------------------------------- Cornell
 
