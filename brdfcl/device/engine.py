@@ -71,6 +71,7 @@ class CellSet:
     blocks: list = field(default_factory=list)   # [(first material, count, data buffer)]
     geom_buf: Any = None              # cl.Buffer of geom_host
     per_material: list | None = None  # scattered samples: each material's float64 Cells
+    targets: dict = field(default_factory=dict)  # (metric, cosw) -> per block, buffer of g(m cw)
 
     @property
     def geo_stride(self) -> int:
@@ -261,6 +262,26 @@ class Engine:
         values = np.atleast_2d(np.asarray(values, dtype=np.float64))
         return np.concatenate([values, self.model.consts(values)], axis=1).astype(self.dtype)
 
+    def _targets(self, cs: CellSet) -> list:
+        """Per data block, the buffer of the fit's targets g(m cw), made on the device once per
+        cell set and metric (the target kernel): the loss, gradient and J^T J kernels read them
+        instead of transforming the measured values at every evaluation."""
+        key = (self.opt.metric, self.opt.cosw)
+        if key not in cs.targets:
+            bufs = []
+            n_vec = cs.n_cells // self.opt.vw
+            ng = max(1, -(-n_vec // self.opt.chunk))
+            for first, count, dbuf in cs.blocks:
+                tbuf = cl.Buffer(self.ctx, cl.mem_flags.READ_WRITE, dbuf.size)
+                mat = cl.Buffer(self.ctx, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
+                                hostbuf=np.arange(count, dtype=np.int32))
+                self._kernels["target"](self.queue, (count, ng * self.opt.local), (1, self.opt.local),
+                                        cs.geom_buf, np.int32(cs.n_cells), np.int32(cs.geo_stride),
+                                        np.int32(first), dbuf, dbuf, mat, tbuf)
+                bufs.append(tbuf)
+            cs.targets[key] = bufs
+        return cs.targets[key]
+
     def _run(self, kname, cs: CellSet, values, mats):
         values = np.atleast_2d(values)
         mats = np.broadcast_to(np.asarray(mats, dtype=np.int32), (values.shape[0],))
@@ -271,7 +292,8 @@ class Engine:
         prm_all = self._params(values)
         kern = self._kernels[kname]
         mf = cl.mem_flags
-        for first, count, dbuf in cs.blocks:
+        data = [b for _, _, b in cs.blocks] if kname == "errors" else self._targets(cs)
+        for (first, count, _), dbuf in zip(cs.blocks, data):
             sel = np.flatnonzero((mats >= first) & (mats < first + count))
             if sel.size == 0:
                 continue

@@ -23,7 +23,7 @@ import pyopencl as cl
 
 from brdfcl.device.platforms import DeviceError
 
-KERNELS = ("loss", "grad", "jtj", "errors", "predict")
+KERNELS = ("target", "loss", "grad", "jtj", "errors", "predict")
 BUILD_OPTIONS = ["-cl-mad-enable"]
 ABI_WARNING = "changes the ABI"     # LLVM, when vector arguments are wider than the target
 _REPAIRED: set = set()

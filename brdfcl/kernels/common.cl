@@ -3,7 +3,9 @@
  * All term functions are written once for any vector width (1 on GPUs). */
 #define PI_R ((real)M_PI)
 #define INV_PI_R ((real)M_1_PI)
-#define SEL(a, b, cond) select((a), (b), (cond_v)(cond))
+/* b where cond holds, lane by lane (OpenCL's select, written as the vector ?: so that it compiles
+ * inline: the pip PoCL calls select() out of line, spilling every vector register) */
+#define SEL(a, b, cond) ((cond) ? (b) : (a))
 
 typedef struct {
     real_v sh, ch, cd, ci, co;   /* sin/cos theta_h, cos theta_d, cos theta_i, cos theta_o */
@@ -15,7 +17,7 @@ typedef struct {
     real_v inv4cico;             /* 1 / (4 cos ti cos to) */
 } cell_t;
 
-/* Mirrors brdfcl/lobes/cells.py. */
+/* Mirrors brdfcl/model/lobes/cells.py. */
 inline cell_t make_cell(real_v sh, real_v ch, real_v cd, real_v ci, real_v co)
 {
     cell_t c;

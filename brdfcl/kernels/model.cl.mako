@@ -14,7 +14,9 @@ typedef ${cond_v} cond_v;
 % if vw == 1:
 #define VLOAD(p, o) ((p)[o])
 % else:
-#define VLOAD(p, o) vload${vw}(0, (p) + (o))
+/* an aligned vector load (o is a multiple of the width, rows are padded to it): vload is an
+ * out-of-line call in the pip PoCL */
+#define VLOAD(p, o) (*(__global const real_v *)((p) + (o)))
 % endif
 
 ${common}
@@ -80,11 +82,11 @@ inline real hsum(real_v v)
 <%def name="residuals()">
         const real_v cw = ${'c.ci' if cosw else '(real_v)1'};
 % for ch in range(n_ch):
-        const real_v m${ch} = VLOAD(M, ${ch} * n_cells + o);
+        const real_v t${ch} = VLOAD(M, ${ch} * n_cells + o);     /* g(m cw), from the target kernel */
         const real_v x${ch} = p${ch} * cw;
         const real_v g${ch} = metric_g(x${ch});
-        const real_v w${ch} = SEL(w, (real_v)0, isnan(m${ch}));
-        const real_v r${ch} = SEL(g${ch} - metric_g(m${ch} * cw), (real_v)0, isnan(m${ch}));
+        const real_v w${ch} = SEL(w, (real_v)0, t${ch} != t${ch});   /* NaN: a missing cell */
+        const real_v r${ch} = SEL(g${ch} - t${ch}, (real_v)0, t${ch} != t${ch});
 % endfor
 </%def>
 
@@ -111,6 +113,27 @@ inline real hsum(real_v v)
 #define KARGS __global const real *geom, const int n_cells, const int geo_stride, const int mat0, \
               __global const real *data, \
               __global const real *prm, __global const int *mat, __global real *out
+
+/* the fit's target g(m cw) of every measured value, once per upload (data: the measured values;
+ * out: the targets, in the same layout; NaN stays NaN).  loss, grad and jtj read these targets as
+ * their data, so that the metric of the data is not recomputed at every evaluation. */
+__kernel __attribute__((reqd_work_group_size(1, ${wg}, 1))) void target(KARGS)
+{
+    const int e = get_global_id(0);
+    const int g = get_group_id(1);
+    const int lid = get_local_id(1);
+    __global const real *M = data + (size_t)mat[e] * ${n_ch} * n_cells;
+    __global const real *G = geom + (size_t)(mat[e] + mat0) * geo_stride;
+    __global real *T = out + (size_t)mat[e] * ${n_ch} * n_cells;
+    const int v0 = g * ${chunk}, v1 = min(v0 + ${chunk}, n_cells / ${vw});
+    for (int v = v0 + lid; v < v1; v += ${wg}) {
+        const int o = v * ${vw};
+        const real_v cw = ${'VLOAD(G, 3 * n_cells + o)' if cosw else '(real_v)1'};
+% for ch in range(n_ch):
+        *(__global real_v *)(T + ${ch} * n_cells + o) = metric_g(VLOAD(M, ${ch} * n_cells + o) * cw);
+% endfor
+    }
+}
 
 /* loss = sum w r^2 */
 __kernel __attribute__((reqd_work_group_size(1, ${wg}, 1))) void loss(KARGS)
@@ -200,8 +223,8 @@ ${cell_and_model()}
 % for ch in range(n_ch):
         {
         const real_v m = VLOAD(M, ${ch} * n_cells + o);
-        const real_v ww = SEL(w, (real_v)0, isnan(m));
-        const real_v xm = SEL(m * cw, (real_v)0, isnan(m)), xp = SEL(p${ch} * cw, (real_v)0, isnan(m));
+        const real_v ww = SEL(w, (real_v)0, m != m);
+        const real_v xm = SEL(m * cw, (real_v)0, m != m), xp = SEL(p${ch} * cw, (real_v)0, m != m);
 % for n, gp, gm in reported:
         const real_v d_${n} = ${gp} - ${gm};
 % endfor
