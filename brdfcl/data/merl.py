@@ -47,6 +47,13 @@ class MerlTable:
         out *= SCALE.astype(dtype)[:, None]
         return out
 
+    def brdf_at(self, index, dtype=np.float64) -> np.ndarray:
+        """BRDF values (3, len(index)) at some cells, without a copy of the whole table."""
+        out = np.empty((3, len(index)), dtype=dtype)
+        for c in range(3):
+            np.multiply(self.stored[c].take(index), SCALE[c], out=out[c], casting="same_kind")
+        return out
+
 
 def material_name(path) -> str:
     return Path(path).name[: -len(".binary")] if str(path).endswith(".binary") else Path(path).stem
@@ -77,10 +84,9 @@ def read_merl(path) -> MerlTable:
         raise MerlError(f"{path}: file changed while reading ({raw.size} values read)")
     raw = raw.reshape(3, N_CELLS)
     with np.errstate(invalid="ignore"):
-        bad = ~(raw >= 0)                 # negative or NaN
-    bad |= np.isinf(raw)
-    raw[bad] = np.nan
-    n_missing = int(bad.any(axis=0).sum())
+        bad = ~((raw >= 0) & (raw < np.inf))         # negative, NaN or inf, in one pass
+    np.copyto(raw, np.nan, where=bad)
+    n_missing = int(np.count_nonzero(bad[0] | bad[1] | bad[2]))
     if n_missing == N_CELLS:
         raise MerlError(f"{path}: every cell is missing (all values negative, NaN or inf)")
     return MerlTable(material_name(path), path, raw, n_missing)

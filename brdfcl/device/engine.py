@@ -112,16 +112,15 @@ def extract(tables, indices, dtype=np.float32, on_error=None):
     for item in tables:
         try:
             t = item() if callable(item) else item
-            brdf = t.brdf(np.float64)
+            values = [t.brdf_at(idx, dtype) for idx in indices]
         except Exception as e:
             if on_error is None:
                 raise
             on_error(item, e)
             continue
         names.append(t.name)
-        for lst, idx in zip(parts, indices):
-            lst.append(brdf[:, idx].astype(dtype))
-        del brdf
+        for lst, v in zip(parts, values):
+            lst.append(v)
     return names, [np.stack(p) if p else np.zeros((0, 3, idx.size), dtype)     # MERL: 3 channels
                    for p, idx in zip(parts, indices)]
 
