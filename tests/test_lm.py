@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.optimize import lsq_linear
 
-from brdfcl.optim.lm import LMOptions, levenberg_marquardt
+from brdfcl.optim.lm import LMOptions, LMRun, levenberg_marquardt
 
 FLAT = "converged (predicted decrease below ftol)"
 FTOL = "converged (ftol)"
@@ -329,3 +329,28 @@ def test_equal_loss_is_not_accepted():
 def test_negative_infinite_loss_is_rejected():
     st = run_scripted([1.0, -np.inf, np.nan, 0.5, -np.inf, np.inf, 0.25] + [0.25] * 20, max_reject=4)
     assert st.loss[0] == 0.25 and np.isfinite(st.x).all()
+
+
+def test_run_steps_report_each_row_once_as_the_callbacks_do():
+    """LMRun.steps (what the fit iterates) finishes every row exactly once, at the moment
+    levenberg_marquardt's on_done reports it, with the same final state; a row finishing before a
+    launch (at its optimum) comes in a step without evaluations."""
+    rng = np.random.default_rng(6)
+    A, b = rng.normal(size=(10, 2)), rng.normal(size=10)
+    xs = np.linalg.lstsq(A, b, rcond=None)[0]
+    residuals = [linear(A, b), rosenbrock, rosenbrock]
+    x0 = np.array([xs, [-1.2, 1.0], [0.0, 0.0]])
+    lo, hi = np.full(2, -5.0), np.full(2, 5.0)
+    opts = LMOptions(max_iter=30)
+    reported = []
+    ref = levenberg_marquardt(Batch(residuals, lo, hi), x0, lo, hi, opts,
+                              on_done=lambda rows, x, L, s: reported.append(sorted(rows.tolist())))
+    run = LMRun(Batch(residuals, lo, hi), x0, lo, hi, opts)
+    steps = [(s.iteration, s.evaluated, sorted(s.finished.tolist()), s.running.copy()) for s in run.steps()]
+    assert [f for _, _, f, _ in steps if f] == reported
+    assert sorted(sum(reported, [])) == [0, 1, 2]
+    assert steps[0][:3] == (0, False, [0])                        # row 0 starts at its optimum
+    assert not steps[-1][3].any()
+    np.testing.assert_array_equal(run.state.x, ref.x)
+    np.testing.assert_array_equal(run.state.nfev, ref.nfev)
+    assert run.state.status == ref.status

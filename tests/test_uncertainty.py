@@ -19,9 +19,11 @@ from brdfcl.device.engine import select_cells
 from brdfcl.model.compose import Model
 from brdfcl.model.lobes.cells import Cells
 from brdfcl.model.synth import DEMO, demo_values
+from brdfcl.optim.albedo import ALBEDO_LIMIT, directional_albedo
+from brdfcl.optim.assessment import bounds_hit, flags
 from brdfcl.optim.fit import FitOptions, Fitter, coarse_cells
 from brdfcl.optim.lm import LMOptions, levenberg_marquardt
-from brdfcl.optim.uncertainty import ALBEDO_LIMIT, bounds_hit, directional_albedo, flags
+from brdfcl.optim.objective import Target, penalty_scale
 from brdfcl.report.output import result_document
 
 MATERIAL = "synth-smooth-plastic"   # diffuse+ggx:smith:dielectric, alpha 0.03
@@ -41,17 +43,17 @@ def _noisy_table(model, values, index, noise, seed):
 def _bootstrap(fitter, names, data, x_fit, resamples, seed):
     """Refits over resamples of the cells (multinomial counts as weights), a few LM iterations each
     from the optimum: (resamples, free parameters) natural values."""
-    eng, m = fitter.engine, fitter.model
+    eng, m, sp = fitter.engine, fitter.model, fitter.objective.spaces
     idx = fitter.full_index
     rng = np.random.default_rng(seed)
-    ylo, yhi = fitter.to_lm(m.x_lo), fitter.to_lm(m.x_hi)
+    ylo, yhi = sp.y_bounds
     out = []
     for _ in range(resamples):
         counts = rng.multinomial(idx.size, np.full(idx.size, 1.0 / idx.size)).astype(float)
-        cs = eng.upload(names, idx, data, weight_scale=counts)
-        st = levenberg_marquardt(lambda ys, rows: fitter._jtj_lm(cs, ys, rows), fitter.to_lm(x_fit[None]),
+        target = Target(eng.upload(names, idx, data, weight_scale=counts), penalty_scale(idx, data))
+        st = levenberg_marquardt(lambda ys, rows: fitter.objective.jtj(target, ys, rows), sp.to_y(x_fit[None]),
                                  ylo, yhi, LMOptions(max_iter=8))
-        out.append(m.from_x(fitter.from_lm(st.x))[0, m.free_index])
+        out.append(m.from_x(sp.from_y(st.x))[0, m.free_index])
     return np.array(out)
 
 

@@ -1,0 +1,112 @@
+"""What a finished fit is worth, the pipeline's last stage: its reported errors, the parameters at
+a bound, and (issue 17) standard errors (brdfcl.optim.uncertainty), directional albedo
+(brdfcl.optim.albedo) and flags for values a user should not trust, in NAME.json's form."""
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+
+import numpy as np
+
+from brdfcl.model.compose import Model
+from brdfcl.optim.albedo import ALBEDO_LIMIT, ALBEDO_THETA_DEG, directional_albedo
+from brdfcl.optim.objective import Objective, Target
+from brdfcl.optim.result import StageResult
+from brdfcl.optim.uncertainty import Uncertainty, json_number, standard_errors
+
+_log = logging.getLogger("brdfcl")
+
+RELATIVE_ERROR_LIMIT = 1.0              # flag a parameter whose standard error exceeds |value|
+
+
+def evaluate(objective: Objective, target: Target, done: StageResult) -> StageResult:
+    """The error evaluation of finished rows on ``target`` (the full table): their reported errors
+    (brdfcl.model.metrics), the parameters at a bound, and success: a finite loss and errors (a
+    failed row's status says why)."""
+    err = objective.engine.errors(target.cells, objective.spaces.values(done.x), done.mat)
+    ok = np.array([bool(np.isfinite(done.fun[j]) and all(np.isfinite(e[j]) for e in err.values()))
+                   for j in range(done.mat.size)], dtype=bool)
+    status = [s if good else f"failed: {s}, non-finite error" for s, good in zip(done.status, ok)]
+    return StageResult(done.x, done.fun, done.mat, done.nfev, status, ok, "errors evaluated", errors=err,
+                       bounds_hit=[bounds_hit(objective.model, x) for x in done.x])
+
+
+def albedo_json(albedo_row: np.ndarray, theta_i_deg: Sequence[float] = ALBEDO_THETA_DEG) -> dict:
+    """One fit's directional albedo (angles, channels) in NAME.json's form."""
+    return {"theta_i_deg": [float(t) for t in theta_i_deg],
+            "channels": [[json_number(a) for a in row] for row in albedo_row]}
+
+
+# --- flags ---------------------------------------------------------------------------------------
+def flags(model: Model, values: np.ndarray, at_bound: Sequence[str] = (), unc: Uncertainty | None = None,
+          albedo_row: np.ndarray | None = None, theta_i_deg: Sequence[float] = ALBEDO_THETA_DEG) -> list[str]:
+    """One line per reason not to take a fit at face value: energy conservation broken (albedo above
+    1 in a channel), parameters at a bound, parameters the data leave undetermined."""
+    out = []
+    if albedo_row is not None:
+        a = np.asarray(albedo_row, dtype=np.float64)
+        a = np.where(np.isfinite(a), a, np.inf)
+        if (a > ALBEDO_LIMIT).any():
+            j, c = (int(k) for k in np.unravel_index(np.argmax(a), a.shape))
+            angles = [f"{theta_i_deg[t]:g}" for t in range(a.shape[0]) if (a[t] > ALBEDO_LIMIT).any()]
+            out.append(f"non-physical: directional albedo above 1 (up to {a[j, c]:.4g} in channel "
+                       f"{model.channels[c]} at theta_i {theta_i_deg[j]:g} deg; above 1 at {', '.join(angles)} deg): "
+                       f"the fit reflects more energy than it receives")
+    v = np.asarray(values, dtype=np.float64)
+    for name in at_bound:
+        i = model.names.index(name)
+        lo, hi = model.lo[i], model.hi[i]
+        side = "lower" if abs(v[i] - lo) <= abs(hi - v[i]) else "upper"
+        out.append(f"{name} = {v[i]:.4g} at its {side} bound {lo if side == 'lower' else hi:g} "
+                   f"(no standard error)")
+    if unc is not None:
+        for name, s in unc.std_error.items():
+            val = v[model.names.index(name)]
+            if s is not None and s > RELATIVE_ERROR_LIMIT * abs(val):
+                out.append(f"{name} = {val:.4g} poorly determined: standard error {s:.3g} exceeds its value")
+    return out
+
+
+def bounds_hit(model: Model, x: np.ndarray) -> list[str]:
+    """Free parameters at a bound in the optimiser's space x (FitResult.bounds_hit)."""
+    return [model.names[k] for k, xx, a, b in zip(model.free_index, x, model.x_lo, model.x_hi)
+            if min(xx - a, b - xx) <= 1e-6 * max(1.0, abs(b - a))]
+
+
+def assess(objective: Objective, target: Target, *, data: np.ndarray, values: np.ndarray, rows: np.ndarray,
+           at_bound: list[list[str]]) -> list[dict]:
+    """{"uncertainty", "albedo", "flags"} (NAME.json form) for the fits ``values`` (natural) of the
+    materials ``rows`` of ``target`` (the full cell set; ``data``: every material's values there),
+    ``at_bound`` the names at a bound per fit.  One jtj launch for all of them.  A failure here
+    never costs the fits: they get a flag saying why they were not assessed."""
+    try:
+        return _assess(objective, target, data, values, rows, at_bound)
+    except Exception as e:          # noqa: BLE001 - a diagnostic must not lose a finished fit
+        _log.warning(f"brdfcl: uncertainty not computed: {type(e).__name__}: {e}")
+        return [{"uncertainty": None, "albedo": None,
+                 "flags": [f"not assessed: {type(e).__name__}: {e}"]} for _ in rows]
+
+
+def _assess(objective, target, data, values, rows, at_bound):
+    model = objective.model
+    values = np.atleast_2d(np.asarray(values, dtype=np.float64))
+    rows = np.asarray(rows)
+    extra = objective.penalty_hessian(values, target.scale[rows])
+    finite = np.isfinite(values).all(axis=1)
+    unc = [None] * len(rows)
+    if finite.any():
+        sel = np.flatnonzero(finite)
+        got = standard_errors(objective.engine, target.cells, data, values[sel], rows[sel],
+                              at_bound=[at_bound[j] for j in sel], extra_hessian=None if extra is None else extra[sel])
+        for j, u in zip(sel, got):
+            unc[j] = u
+    alb = directional_albedo(model, np.where(finite[:, None], values, model.defaults()))
+    out = []
+    for j in range(len(rows)):
+        if not finite[j]:
+            out.append({"uncertainty": None, "albedo": None,
+                        "flags": ["not assessed: non-finite parameters"]})
+            continue
+        out.append({"uncertainty": unc[j].as_json(), "albedo": albedo_json(alb[j]),
+                    "flags": flags(model, values[j], at_bound[j], unc[j], alb[j])})
+    return out

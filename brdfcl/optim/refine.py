@@ -1,0 +1,123 @@
+"""The local stage: Levenberg-Marquardt on the full table from one start per material, reviving
+lobes that end at zero amplitude.
+
+It runs as a sequence of `RefineStep`s, one whenever materials finish, so that the caller can
+write their results as they arrive (between launches, outside the solver).  A material that
+finishes with a dead lobe (`dead_lobes`) is held back: after the batched run, the lobe is revived
+at ``FitOptions.probes`` shapes spread over its search range, each refined, and the best of those
+and the held result is the material's result.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+
+import numpy as np
+
+from brdfcl.model.compose import Model
+from brdfcl.optim.lm import LMRun, LMState, levenberg_marquardt
+from brdfcl.optim.objective import Objective, Target
+from brdfcl.optim.options import FitOptions
+from brdfcl.optim.result import StageResult
+
+
+def _quiet(line: str) -> None:
+    pass
+
+
+@dataclass
+class RefineStep:
+    """Materials that finished at one moment of the local stage, and the loss of those running."""
+
+    finished: StageResult           # one row per material finished now, at its final point
+    running: np.ndarray             # materials still running after a launch (empty: no launch)
+    loss: np.ndarray                # (n,) every material's current loss
+
+
+@dataclass
+class _JTJ:
+    """Levenberg-Marquardt's callback: rows of the run evaluated for their materials."""
+
+    objective: Objective
+    target: Target
+    mats: np.ndarray                # material of each row of the run
+
+    def __call__(self, y: np.ndarray, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        return self.objective.jtj(self.target, y, self.mats[rows])
+
+
+def dead_lobes(model: Model, x: np.ndarray) -> list[tuple[list[int], list[int]]]:
+    """Lobes whose amplitudes all ended at the lower bound while they have a free shape, as
+    (amplitude columns, shape columns) of x: with no amplitude their shape has no gradient, so a
+    local search cannot bring them back."""
+    cols = {n: k for k, n in enumerate(model.names[i] for i in model.free_index)}
+    dead = []
+    for lb in model.lobes:
+        amp = [cols[s.name] for s in lb.slots() if s.name in cols and s.amplitude]
+        shape = [cols[s.name] for s in lb.slots() if s.name in cols and not s.amplitude and s.param.log]
+        if amp and shape and all(x[k] <= model.x_lo[k] + 1e-6 for k in amp):
+            dead.append((amp, shape))
+    return dead
+
+
+def _finished(objective: Objective, st: LMState, rows: np.ndarray) -> StageResult:
+    return StageResult(objective.spaces.from_y(st.x[rows]), st.loss[rows].copy(), rows, st.nfev.copy(),
+                       [st.status[i] for i in rows], np.isfinite(st.loss[rows]), "Levenberg-Marquardt")
+
+
+def refine(objective: Objective, target: Target, x0: np.ndarray, *, options: FitOptions,
+           log: Callable[[str], None] = _quiet) -> Iterator[RefineStep]:
+    """Levenberg-Marquardt from ``x0`` (n, k), row i for material i of ``target``: yields the
+    materials as they finish (``nfev``: this stage's evaluations per material, probes included)."""
+    sp = objective.spaces
+    n = x0.shape[0]
+    log(f"local: Levenberg-Marquardt on {target.cells.index.size} cells per material")
+    run = LMRun(_JTJ(objective, target, np.arange(n)), sp.to_y(x0), *sp.y_bounds, options.lm)
+    st = run.state
+    held: list[int] = []            # materials finished with a dead lobe, revived at the end
+    for step in run.steps():
+        done = _finished(objective, st, step.finished)
+        dead = np.array([bool(options.probe_dead_lobes and dead_lobes(objective.model, x)) for x in done.x],
+                        dtype=bool)
+        held.extend(done.mat[dead].tolist())
+        running = np.flatnonzero(step.running) if step.evaluated else np.zeros(0, dtype=int)
+        yield RefineStep(done.rows(np.flatnonzero(~dead)), running, st.loss)
+    if held:
+        revived = revive(objective, target, _finished(objective, st, np.array(held)), options=options, log=log)
+        revived.nfev += st.nfev
+        yield RefineStep(revived, np.zeros(0, dtype=int), st.loss)
+
+
+def revive(objective: Objective, target: Target, held: StageResult, *, options: FitOptions,
+           log: Callable[[str], None] = _quiet) -> StageResult:
+    """Revive each dead lobe of the rows ``held`` at ``options.probes`` shapes spread over its
+    search range (amplitude mid-range), refine each, and keep the best per row (the held point if
+    no probe beats it).  ``nfev``: per material, the launches that evaluated its probes (as the
+    fit has always counted them: one per launch, however many probes it held)."""
+    sp, model = objective.spaces, objective.model
+    slo, shi = sp.search_box
+    starts, owner = [], []
+    for q, x in enumerate(held.x):
+        for amp, shape in dead_lobes(model, x):
+            for k in range(options.probes):
+                xs = x.copy()
+                xs[amp] = 0.5 * (slo[amp] + shi[amp])
+                xs[shape] = slo[shape] + (k + 0.5) / options.probes * (shi[shape] - slo[shape])
+                starts.append(xs)
+                owner.append(q)
+    out = StageResult(held.x.copy(), held.fun.copy(), held.mat, np.zeros_like(held.nfev), list(held.status),
+                      held.success.copy(), "Levenberg-Marquardt, dead lobes revived")
+    if not starts:                  # probes=0
+        return out
+    mats = held.mat[np.array(owner, dtype=int)]
+    log(f"local: {len(held.mat)} materials with a lobe at zero amplitude, {len(starts)} probes")
+    st = levenberg_marquardt(_JTJ(objective, target, mats), sp.to_y(np.array(starts)), *sp.y_bounds,
+                             options.lm)
+    xs = sp.from_y(st.x)
+    for j, q in enumerate(owner):
+        if np.isfinite(st.loss[j]) and st.loss[j] < out.fun[q]:
+            out.x[q], out.fun[q] = xs[j], st.loss[j]
+            out.status[q] = st.status[j] + ", after reviving a lobe"
+            out.success[q] = True
+    np.maximum.at(out.nfev, mats, st.nfev)      # a material's probes share each launch: count it once
+    return out
