@@ -20,6 +20,7 @@ import numpy as np
 
 from brdfcl.device.engine import Engine, extract, select_cells
 from brdfcl.model.compose import Model
+from brdfcl.model.lobes.cells import Cells
 from brdfcl.optim.assessment import assess, bounds_hit, evaluate
 from brdfcl.optim.lm import LMOptions
 from brdfcl.optim.objective import Objective, Target, penalty_scale
@@ -29,7 +30,8 @@ from brdfcl.optim.result import FitResult, StageResult
 from brdfcl.optim.search import coarse_cells, global_search, material_seed, pick_starts
 
 __all__ = ["GLOBAL_METHODS", "FitOptions", "FitResult", "Fitter", "LMOptions", "StageResult", "Targets",
-           "bounds_hit", "coarse_cells", "extract", "fit_tables", "load_batch", "material_seed", "select_cells"]
+           "bounds_hit", "coarse_cells", "extract", "fit_samples", "fit_tables", "load_batch", "material_seed",
+           "select_cells"]
 
 
 def _quiet(line: str) -> None:
@@ -49,9 +51,12 @@ class Fitter:
 
     assess_results = True   # attach standard errors, albedo and flags to each result (brdfcl.optim.assessment)
 
-    def __init__(self, opts: FitOptions, engine: Engine | None = None):
+    def __init__(self, opts: FitOptions, engine: Engine | None = None, lambdas: Sequence[float] | None = None):
+        """``lambdas``: the channels' wavelengths (um) when they are not the R, G, B of a MERL table
+        (spectral samples: one per band)."""
         self.opts = opts
-        self.model = Model(opts.model, fixed=opts.fixed)
+        channels = {} if lambdas is None else {"lambdas": tuple(lambdas)}
+        self.model = Model(opts.model, fixed=opts.fixed, **channels)
         self.engine = engine or Engine(self.model, device=opts.device, real=opts.real,
                                        metric=opts.metric, cosw=opts.cosw, vector_width=opts.vector_width)
         self.objective = Objective(self.engine, self.model, peak_order=opts.ct_peak)
@@ -71,9 +76,42 @@ class Fitter:
             on_result: Callable[[FitResult], None] | None = None,
             log: Callable[[str], None] = _quiet) -> list[FitResult]:
         """Fit every material; ``on_result(FitResult)`` is called as each one finishes."""
-        o, objective, names = self.opts, self.objective, list(names)
         t0 = time.perf_counter()
-        t = self.targets(names, full_data, coarse_data)
+        return self.run(list(names), self.targets(names, full_data, coarse_data), full_data, t0, on_result, log)
+
+    def sample_targets(self, samples: Sequence) -> tuple[list[str], Targets, np.ndarray]:
+        """Upload scattered measurements (brdfcl.data.samples.Samples, the model's channels): each
+        material's samples inside the cut-off with their weights (``Samples.weights_within``), its
+        own geometry.  The set is small, so the global search runs on all of it too.  Returns
+        (names, targets, data (n_mat, C, longest) padded with NaN)."""
+        names, cells, weights, values = [], [], [], []
+        for s in samples:
+            ok = s.mask(self.opts.cutoff_deg)
+            names.append(s.name)
+            cells.append(Cells.from_directions(s.wi[ok], s.wo[ok]))
+            weights.append(np.asarray(s.weights_within(self.opts.cutoff_deg)[ok], dtype=np.float64))
+            values.append(np.asarray(s.values[ok], dtype=np.float64).T)
+        cs = self.engine.upload_samples(names, cells, weights, values)
+        data = np.full((len(names), self.model.n_channels, cs.index.size), np.nan)
+        for i, v in enumerate(values):
+            data[i, :, :v.shape[1]] = v
+        scale = np.array([np.sum(np.isfinite(v) * w) for v, w in zip(values, weights)])
+        target = Target(cs, scale)
+        return names, Targets(target, target), data
+
+    def fit_samples(self, samples: Sequence, on_result: Callable[[FitResult], None] | None = None,
+                    log: Callable[[str], None] = _quiet) -> list[FitResult]:
+        """Fit scattered measurements (Samples with the model's channels), all in one batch."""
+        t0 = time.perf_counter()
+        names, targets, data = self.sample_targets(samples)
+        return self.run(names, targets, data, t0, on_result, log)
+
+    def run(self, names: list[str], t: Targets, full_data: np.ndarray, t0: float,
+            on_result: Callable[[FitResult], None] | None = None,
+            log: Callable[[str], None] = _quiet) -> list[FitResult]:
+        """The pipeline on targets already on the device (``full_data``: their values, for the
+        uncertainty)."""
+        o, objective = self.opts, self.objective
         batch = _Batch(self, names, full_data, t.full, on_result, t0)
         found = global_search(objective, t.coarse, names=names, options=o, penalty=o.ct_peak_global, log=log)
         start = pick_starts(objective, t.full, found, n_materials=len(names))
@@ -153,6 +191,17 @@ def load_batch(items: Sequence, fitter: Fitter,
     names, (full, coarse) = extract(items, [fitter.full_index, fitter.coarse_index],
                                     fitter.engine.dtype, on_error=on_error)
     return names, full, coarse
+
+
+def fit_samples(samples: Sequence, opts: FitOptions | None = None, **kw) -> list[FitResult]:
+    """Fit scattered measurements (brdfcl.data.samples.Samples) that share one set of channels,
+    in one batch; the model gets one channel per band, at its wavelength."""
+    opts = opts or FitOptions(**kw)
+    samples = list(samples)
+    bands = {tuple(s.wavelengths) for s in samples}
+    if len(bands) != 1:
+        raise ValueError(f"samples with {len(bands)} different sets of wavelengths: fit each set on its own")
+    return Fitter(opts, lambdas=bands.pop()).fit_samples(samples)
 
 
 def fit_tables(tables: Sequence, opts: FitOptions | None = None, **kw) -> list[FitResult]:

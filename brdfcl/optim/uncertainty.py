@@ -92,18 +92,26 @@ def method_line(stride: int, penalty: bool = False) -> str:
 
 
 def meat(model: Model, index: np.ndarray, data: np.ndarray, values: np.ndarray, metric: str = "log",
-         cosw: bool = True, stride: int = 1, rows: np.ndarray | None = None) -> np.ndarray:
+         cosw: bool = True, stride: int = 1, rows: np.ndarray | None = None, cs: CellSet | None = None) -> np.ndarray:
     """``M = sum_cells w^2 g g^T``, ``g = sum_ch r dr/dtheta`` (n, k, k) for each material, on every
     ``stride``-th of the cells ``index`` (table order) scaled by the stride.  ``data``: measured
     values at ``index`` (NaN: missing), (materials, channels, index.size); fit i is of material
-    ``rows[i]`` (default i); ``values``: (n, n_params) natural."""
-    sub, cells, w, cos_i = _subsample(index, stride)
-    cw = cos_i if cosw else np.ones(sub.size)
+    ``rows[i]`` (default i); ``values``: (n, n_params) natural.  A cell set ``cs`` of scattered
+    samples gives each material's own cells and weights instead of the table's."""
     k = model.n_free
     out = np.zeros((len(values), k, k))
-    w2 = w * w
     for i, v in enumerate(np.atleast_2d(values)):
-        m = np.asarray(data[i if rows is None else rows[i]][:, sub], dtype=np.float64)
+        row = i if rows is None else rows[i]
+        if cs is not None and cs.per_material is not None:
+            every = cs.cells(row)
+            sub = np.arange(stride // 2, len(every), stride)
+            cells = Cells(*(getattr(every, a)[sub] for a in ("sh", "ch", "cd", "ci", "co")))
+            w, cos_i = np.asarray(cs.geom_host[row, 5, sub], dtype=np.float64), cells.ci
+        else:
+            sub, cells, w, cos_i = _subsample(index, stride)
+        cw = cos_i if cosw else np.ones(sub.size)
+        w2 = w * w
+        m = np.asarray(data[row][:, sub], dtype=np.float64)
         ok = np.isfinite(m)
         p, J = model.reference(cells, v)
         gp, dg = transform(metric, p * cw)
@@ -181,7 +189,8 @@ def standard_errors(engine: Engine, cs: CellSet, data: np.ndarray, values: np.nd
     if extra_hessian is not None:
         H = H + extra_hessian
     mats = np.broadcast_to(np.asarray(mats), (n,))
-    M = meat(model, cs.index, data, values, metric=engine.opt.metric, cosw=engine.opt.cosw, stride=stride, rows=mats)
+    M = meat(model, cs.index, data, values, metric=engine.opt.metric, cosw=engine.opt.cosw, stride=stride, rows=mats,
+             cs=cs)
     free = [model.names[i] for i in model.free_index]
     out = []
     for i in range(n):
