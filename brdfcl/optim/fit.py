@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -40,10 +40,12 @@ def _quiet(line: str) -> None:
 
 @dataclass(frozen=True)
 class Targets:
-    """One batch on the device: the full table and the global search's coarse subset."""
+    """One batch on the device: the full table, the global search's coarse subset and, with
+    ``FitOptions.preview_stride`` > 1, every n-th cell of the table for a first local pass."""
 
     full: Target
     coarse: Target
+    preview: Target | None = None
 
 
 class Fitter:
@@ -70,7 +72,12 @@ class Fitter:
         scale = penalty_scale(self.full_index, full_data)
         full = self.engine.upload(names, self.full_index, full_data)
         coarse = self.engine.upload(names, self.coarse_index, coarse_data, weight_scale=self.coarse_scale)
-        return Targets(Target(full, scale), Target(coarse, scale))
+        s = self.opts.preview_stride
+        preview = None
+        if s > 1:
+            preview = Target(self.engine.upload(names, self.full_index[s // 2::s], full_data[:, :, s // 2::s],
+                                                weight_scale=float(s)), scale)
+        return Targets(Target(full, scale), Target(coarse, scale), preview)
 
     def fit(self, names: Sequence[str], full_data: np.ndarray, coarse_data: np.ndarray,
             on_result: Callable[[FitResult], None] | None = None,
@@ -116,11 +123,29 @@ class Fitter:
         found = global_search(objective, t.coarse, names=names, options=o, penalty=o.ct_peak_global, log=log)
         start = pick_starts(objective, t.full, found, n_materials=len(names))
         batch.started(found, objective.loss(t.full, start.x, np.arange(len(names))))
-        for step in refine(objective, t.full, start.x, options=o, log=log):
+        x0, local = start.x, o
+        if t.preview is not None:       # multi-resolution: converge on every n-th cell first
+            previewed = _converged(refine(objective, t.preview, x0, options=o, log=log), len(names))
+            batch.previewed(previewed)
+            x0 = previewed.x
+            local = replace(o, probe_dead_lobes=False, lm=replace(o.lm, max_iter=o.preview_final_iter))
+        for step in refine(objective, t.full, x0, options=local, log=log):
             batch.progress(step.running, step.loss)
             if step.finished.mat.size:
                 batch.finish(evaluate(objective, t.full, step.finished))
         return batch.results()
+
+
+def _converged(steps, n: int) -> StageResult:
+    """Every material's final row of a local stage run to its end (nothing handed out)."""
+    rows: list = [None] * n
+    for step in steps:
+        for j, i in enumerate(step.finished.mat):
+            rows[i] = step.finished.rows(np.array([j]))
+    x = np.concatenate([r.x for r in rows])
+    return StageResult(x, np.concatenate([r.fun for r in rows]), np.arange(n),
+                       np.array([int(r.nfev[r.mat[0]]) for r in rows]), [r.status[0] for r in rows],
+                       np.concatenate([r.success for r in rows]), "Levenberg-Marquardt on the preview cells")
 
 
 class _Batch:
@@ -145,6 +170,10 @@ class _Batch:
         self.global_nfev = found.nfev
         for i, h in enumerate(self.history):
             h.append((self.t_global, "global", float(np.sqrt(loss[i] / self.target.scale[i]))))
+
+    def previewed(self, done: StageResult) -> None:
+        """The preview pass is over: its evaluations count with the global stage's."""
+        self.global_nfev = self.global_nfev + done.nfev
 
     def progress(self, running: np.ndarray, loss: np.ndarray) -> None:
         t = self.now()

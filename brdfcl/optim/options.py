@@ -30,6 +30,8 @@ class FitOptions:
     coarse_peak_bins: int = 8       # every peak_stride-th cell with theta_h index below peak_bins
     coarse_peak_stride: int = 5
     lm: LMOptions = field(default_factory=LMOptions)
+    preview_stride: int = 8         # > 1: LM first on every n-th cell of the table, to convergence,
+    preview_final_iter: int = 10    # then at most this many iterations on the full table (1: off)
     seed: int = 0
     fixed: dict = field(default_factory=dict)
     probe_dead_lobes: bool = True   # revive a lobe that ends at zero amplitude at `probes` shapes
@@ -38,5 +40,8 @@ class FitOptions:
     ct_peak_global: bool = True     # ... in the global search too (else only in the local stage)
 
     def __post_init__(self) -> None:
+        if self.preview_stride < 1 or self.preview_final_iter < 1:
+            raise ValueError(f"preview stride {self.preview_stride} / final iterations {self.preview_final_iter}: "
+                             f"must be at least 1")
         if self.global_method not in GLOBAL_METHODS:
             raise ValueError(f"global method '{self.global_method}'; valid: {', '.join(GLOBAL_METHODS)}")
