@@ -12,6 +12,7 @@ from brdfcl.model.lobes.diffraction import LAMBDAS
 from brdfcl.model.synth import DEMO, demo_values, tabulate
 from brdfcl.report import figures as report
 from brdfcl.report import style as FS
+from brdfcl.report.writers.analysis_index import write_index
 
 SPEC = "diffuse+diffraction:hp:none+ggx:smith:schlick"
 
@@ -135,7 +136,7 @@ def test_index_fits_the_page(smooth_metal, tmp_path):
             "grad_score_g", "grad_cells", "grad_band_deg_g", "wavelength_ratio", "rmse_log_full",
             "rmse_log_no_diffraction", "rmse_log_no_ct", "peak_share_diffraction", "rmse_log_full_free",
             "peak_share_free")}})
-    report.write_index(tmp_path, [a])
+    write_index(tmp_path, [a])
     page = (tmp_path / "index.html").read_text()
     assert "<th title='rmse_log_no_diffraction'>" in page          # short headers, the CSV name in a tooltip
     assert "diffuse+<wbr>diffraction" in page                        # long lobe specs wrap

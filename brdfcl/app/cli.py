@@ -1,20 +1,20 @@
-"""The `brdfcl` command line.  Errors are one line naming the problem (tracebacks with --debug)."""
+"""The `brdfcl` command line.  Errors are one line naming the problem (tracebacks with --debug).
+
+One function per command (``cmd_*``), the parser (``build_parser``) and ``main``; the flags that
+make FitOptions, shared by fit-all and analyze, are brdfcl.app.arguments.  A command runs a job
+(brdfcl.app.run.fit_all, brdfcl.app.analyze.analyze) or a writer (``export``) and prints its outcome.
+"""
 from __future__ import annotations
 
 import argparse
-import functools
-import inspect
 import os
 import sys
-from dataclasses import fields, replace
 
 from brdfcl._version import __version__
+from brdfcl.app.arguments import UsageError, add_database_arguments, default_of, fit_options
 
-NO_CUTOFF_DEG = 90.0    # --cutoff at or beyond the horizon: no cutoff (FitOptions.cutoff_deg None)
-
-
-class UsageError(Exception):
-    """A problem the user can fix, printed as one line."""
+# fit_options and UsageError are this module's too (tests and scripts import them from here)
+__all__ = ["UsageError", "build_parser", "fit_options", "main"]
 
 
 def cmd_info(args):
@@ -58,39 +58,6 @@ def cmd_synth(args):
     write_synth(args.out, mats, noise=args.noise, missing=args.missing, seed=args.seed)
     print(f"wrote {len(mats or DEMO)} materials and truth.json to {args.out}")
     return 0
-
-
-def _fixed(items):
-    out = {}
-    for it in items or []:
-        k, sep, v = it.partition("=")
-        try:
-            out[k.strip()] = float(v)
-        except ValueError:
-            raise UsageError(f"--fix '{it}': expected NAME=VALUE, e.g. ct.eta=1.5") from None
-        if not sep:
-            raise UsageError(f"--fix '{it}': expected NAME=VALUE, e.g. ct.eta=1.5")
-    return out
-
-
-def fit_options(args):
-    """FitOptions from the fit flags the user gave; every other field keeps FitOptions' default.
-
-    The flags of `add_fit_arguments` are absent from ``args`` unless given (default SUPPRESS), and
-    most are stored under their FitOptions field's name; the others are converted here."""
-    from brdfcl.model.compose import Model
-    from brdfcl.optim.fit import FitOptions
-    given = vars(args)
-    kw = {f.name: given[f.name] for f in fields(FitOptions) if f.name in given}
-    if "cutoff" in given:
-        kw["cutoff_deg"] = None if args.cutoff >= NO_CUTOFF_DEG else args.cutoff
-    if "fix" in given:
-        kw["fixed"] = _fixed(args.fix)
-    if "max_iter" in given:
-        kw["lm"] = replace(FitOptions().lm, max_iter=args.max_iter)
-    opts = FitOptions(**kw)
-    Model(opts.model, fixed=opts.fixed)             # clear error for a bad model before any work
-    return opts
 
 
 def _database_job(args):
@@ -147,22 +114,28 @@ def cmd_analyze(args):
 
 
 def cmd_export(args):
-    """A finished fit (NAME.json) as a BRDF Explorer file and/or a MERL table, without refitting."""
+    """A finished fit (NAME.json) as a BRDF Explorer file and/or a MERL table, without refitting:
+    the export writers of a fit job (brdfcl.report.writers), each to the path given."""
+    from pathlib import Path
+
     from brdfcl.report.export.fitfile import load_fit
-    if not (args.brdf_explorer or args.merl):
+    from brdfcl.report.writers import FIT, Job, export_writers
+    wanted = {"brdf_explorer": args.brdf_explorer, "merl": args.merl}
+    if not any(wanted.values()):
         raise UsageError("give --brdf-explorer PATH and/or --merl PATH")
-    for out in (args.brdf_explorer, args.merl):
+    for out in wanted.values():
         if out and os.path.exists(out) and os.path.samefile(out, args.fit):
             raise UsageError(f"{out}: would overwrite the fit it exports")
     fit = load_fit(args.fit)
-    if args.brdf_explorer:
-        from brdfcl.report.export.brdf_explorer import write_brdf_explorer
-        print(f"wrote {write_brdf_explorer(args.brdf_explorer, fit.doc)}")
-    if args.merl:
+
+    def engine(spec):
+        # local: only a MERL export needs OpenCL
         from brdfcl.device.engine import Engine
-        from brdfcl.report.output import export_fit
-        export_fit(args.merl, Engine(fit.model, device=args.device), fit.model.as_dict(fit.values))
-        print(f"wrote {args.merl}")
+        return Engine(fit.model, device=args.device)
+    job = Job(FIT, Path(args.fit).parent, exports=frozenset(k for k, v in wanted.items() if v), engine=engine)
+    for name, path in wanted.items():
+        if path:
+            print(f"wrote {export_writers()[name].export(Path(path), fit.doc, job)}")
     return 0
 
 
@@ -188,65 +161,6 @@ def cmd_params(args):
     return 0
 
 
-def _default(func, name):
-    """The default of one of func's parameters: the CLI shows and uses it without repeating it."""
-    return inspect.signature(func).parameters[name].default
-
-
-def add_fit_arguments(p):
-    """The flags that make FitOptions (see `fit_options`).  Their defaults are FitOptions' and
-    LMOptions' own: a flag that is not given is absent from the parsed arguments, and its help
-    shows the field's default."""
-    from brdfcl.model.metrics import IMPLEMENTED_METRICS, METRICS
-    from brdfcl.optim.fit import GLOBAL_METHODS, FitOptions
-    d = FitOptions()
-    cutoff = "none" if d.cutoff_deg is None else f"{d.cutoff_deg:g}"
-    real = {"float": "float32", "double": "float64"}.get(d.real, d.real)
-    opt = functools.partial(p.add_argument, default=argparse.SUPPRESS)    # absent unless given
-    opt("--model", help=f"model string (default {d.model})")
-    opt("--metric", choices=METRICS, help=f"fit metric (default {d.metric}); "
-        + "; ".join(f"{m.name}: {m.doc}" for m in IMPLEMENTED_METRICS.values()))
-    opt("--no-cos", dest="cosw", action="store_false",
-        help="no cos(theta_i) factor in the residual")
-    opt("--cutoff", type=float,
-        help="leave out cells with theta_i or theta_o beyond this angle "
-             f"(degrees, {NO_CUTOFF_DEG:g} or more: none; default {cutoff})")
-    opt("--double", dest="real", action="store_const", const="double",
-        help=f"float64 kernels and data (default {real})")
-    opt("--device", help="OpenCL device index or name (default: PoCL CPU)")
-    opt("--vector-width", type=int, choices=(1, 2, 4, 8, 16),
-        help="cells per work-item on a CPU (default: the widest that passes the self-test; "
-             "also BRDFCL_VECTOR_WIDTH)")
-    opt("--global", dest="global_method", choices=GLOBAL_METHODS,
-        help=f"global search (default {d.global_method}); lds: Sobol candidates + nlopt L-BFGS starts")
-    opt("--candidates", dest="n_candidates", metavar="CANDIDATES", type=int,
-        help=f"Sobol candidates per material (lds; default {d.n_candidates})")
-    opt("--starts", dest="n_starts", metavar="STARTS", type=int,
-        help=f"local searches per material (lds; default {d.n_starts})")
-    opt("--max-iter", type=int, help=f"Levenberg-Marquardt iterations (default {d.lm.max_iter})")
-    opt("--fix", action="append", metavar="NAME=VALUE", help="hold a parameter fixed")
-    opt("--ct-peak", action="store_true",
-        help="Cook-Torrance carries the specular peak: the diffraction lobe may not exceed it "
-             "there (always on in analyze and --select-lobes unless --free-peak)")
-    p.add_argument("--free-peak", action="store_true", help="analyze, --select-lobes: no peak constraint")
-    opt("--seed", type=int, help=f"seed of the global search (default {d.seed})")
-
-
-def add_database_arguments(p, verb, out_help, job):
-    """What fit-all and analyze share: the database (or --demo), the output, the fit options.
-    ``job``: the function the command runs (brdfcl.app.run.fit_all, brdfcl.app.analyze.analyze), whose
-    defaults the other flags take."""
-    p.add_argument("database", nargs="?", default=None, help="folder of MERL .binary files")
-    p.add_argument("--demo", action="store_true", help=f"{verb} the embedded demo database")
-    p.add_argument("--out", required=True, help=out_help)
-    add_fit_arguments(p)
-    p.add_argument("--batch", type=int, default=_default(job, "batch"),
-                   help="materials per batch (all share each launch; default %(default)s)")
-    p.add_argument("--quiet", action="store_true", help="no progress bar or stage messages")
-    p.add_argument("--no-report", action="store_true",
-                   help="skip the run's report (OUT/report/: spheres, slices, comparison page)")
-
-
 def build_parser():
     from brdfcl.app.analyze import analyze
     from brdfcl.app.run import fit_all
@@ -268,11 +182,11 @@ def build_parser():
 
     p = sub.add_parser("synth", help="write the synthetic demo database (MERL format)")
     p.add_argument("out", help="output folder")
-    p.add_argument("--noise", type=float, default=_default(write_synth, "noise"),
+    p.add_argument("--noise", type=float, default=default_of(write_synth, "noise"),
                    help="relative Gaussian noise (default %(default)s)")
-    p.add_argument("--missing", type=float, default=_default(write_synth, "missing"),
+    p.add_argument("--missing", type=float, default=default_of(write_synth, "missing"),
                    help="fraction of cells marked missing (default %(default)s)")
-    p.add_argument("--seed", type=int, default=_default(write_synth, "seed"),
+    p.add_argument("--seed", type=int, default=default_of(write_synth, "seed"),
                    help="seed of the noise and missing cells (default %(default)s)")
     p.add_argument("--materials", default=None, help="comma-separated subset of the demo materials")
     p.set_defaults(func=cmd_synth)

@@ -16,8 +16,8 @@ the worker and the cause (WorkerError), whose ``__cause__`` holds the worker's
 traceback (shown by ``brdfcl --debug``).  Importing this module does not import Dask
 (only the functions that need it do), so it loads where Dask is not installed.
 
-brdfcl.app.run calls ``fit_on_cluster``; this module takes what it shares with an in-process run
-from below it (brdfcl.data.inputs, brdfcl.report.results), never from brdfcl.app.run.
+brdfcl.app.run calls ``fit_on_cluster``; what it shares with an in-process run (skipped files,
+writers, progress) is the job runner's (brdfcl.app.runner), never brdfcl.app.run's.
 """
 from __future__ import annotations
 
@@ -26,10 +26,10 @@ import math
 import os
 import traceback
 
+from brdfcl.app.runner import Runner
 from brdfcl.data.inputs import FileReader
 from brdfcl.data.merl import material_name
 from brdfcl.optim import fit
-from brdfcl.report.results import Models, Progress, finish_run, result_writer
 
 
 class WorkerError(RuntimeError):
@@ -124,20 +124,18 @@ def _cancel(client, futures):
         pass
 
 
-def fit_on_cluster(client, paths, out, opts, batch, export, report, log, quiet, t0):
-    """Spread ``paths`` over the cluster's workers; fill ``report`` as chunks complete."""
+def fit_on_cluster(client, run: Runner, paths: list[str], opts: fit.FitOptions, batch: int) -> None:
+    """Spread ``paths`` over the cluster's workers; ``run`` writes each chunk's results as it completes."""
     # local: Dask is optional (the "cluster" extra); a caller with a client has it
     from dask.distributed import as_completed
 
     n_workers = max(1, len(client.scheduler_info().get("workers", {})))
     size = max(1, min(batch, math.ceil(len(paths) / (2 * n_workers))))
     chunks = [paths[i:i + size] for i in range(0, len(paths), size)]
-    log(f"cluster: {len(chunks)} chunks of up to {size} materials on {n_workers} workers")
+    run.log(f"cluster: {len(chunks)} chunks of up to {size} materials on {n_workers} workers")
     futures = [client.submit(fit_chunk, c, opts, pure=False, retries=2) for c in chunks]
     chunk_of = {f.key: c for f, c in zip(futures, chunks)}
-    progress = Progress(len(paths), quiet)
-    writer = result_writer(out, Models(opts), export, report, progress)    # engine built only to export
-    try:
+    with run.tracking(len(paths)):
         for fut in as_completed(futures):
             chunk = chunk_of[fut.key]
             what = f"cluster: fitting {chunk_label(chunk)} ({len(chunk)} material{'s' * (len(chunk) != 1)})"
@@ -149,12 +147,7 @@ def fit_on_cluster(client, paths, out, opts, batch, export, report, log, quiet, 
             if failure:
                 _cancel(client, futures)
                 raise WorkerError(f"{what} failed {failure[0]}") from RemoteTraceback(failure[1])
-            report.skipped.update(skipped)
-            for why in skipped.values():
-                log(f"skipped: {why}")
+            for path, why in skipped.items():
+                run.skip(path, why)
             for r in results:
-                writer(r)
-    finally:
-        finish_run(progress, out, report, t0)
-    return report
-
+                run.fitted(r)

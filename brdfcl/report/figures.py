@@ -1,49 +1,18 @@
-"""Analysis outputs: analysis.csv, OpenEXR maps, PNG figures and one index.html."""
+"""The analysis figures of one material: the gradient test, the wavelength check and the fitted
+components, each drawn in the shared style (brdfcl.report.style) and saved atomically.
+
+brdfcl.report.writers.analysis_figures decides where and when they are written.
+"""
 from __future__ import annotations
 
-import csv
-import html
-import io
-from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
 
 from brdfcl.data.geometry import bin_centres
-from brdfcl.data.inputs import check_output_dir
 from brdfcl.model.lobes.diffraction import LAMBDAS
 from brdfcl.report import style as FS
-from brdfcl.report.output import atomic_write_text, remove_stale_temporaries
-
-
-def prepare(out):
-    """Create ``out`` and ``out/figures``: a one-line OSError naming the folder if either cannot be
-    written (brdfcl.data.inputs.check_output_dir); temporaries of a run killed mid-write are removed."""
-    for d in (check_output_dir(out), check_output_dir(Path(out) / "figures")):
-        remove_stale_temporaries(d)
-
-
-@contextmanager
-def writing(path):
-    """A failed write of ``path`` as one line naming it (OpenEXR reports I/O errors as RuntimeError)."""
-    try:
-        yield
-    except (OSError, RuntimeError) as e:
-        why = e.strerror if isinstance(e, OSError) and e.strerror else str(e)
-        why = (why.strip().splitlines() or [type(e).__name__])[0]
-        raise OSError(f"{path}: cannot write: {why}") from e
-
-
-def write_exr(path, channels: dict):
-    """float32 channels (90, 90) into one OpenEXR file (rows theta_h, columns theta_d)."""
-    import OpenEXR
-    data = {k: np.ascontiguousarray(np.nan_to_num(v, nan=-1.0), dtype=np.float32) for k, v in channels.items()}
-    hdr = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
-    tmp = str(path) + ".tmp.exr"
-    with writing(path):
-        with OpenEXR.File(hdr, data) as f:
-            f.write(tmp)
-        Path(tmp).replace(path)
+from brdfcl.report.files import writing
 
 
 def _extent():
@@ -269,70 +238,3 @@ def _components_figure(plt, a):
 def figure_components(a, path):
     """Per channel (rows R, G, B): measured, diffuse + diffraction, Cook-Torrance, full, residual."""
     return _draw(_components_figure, a, path)
-
-
-def write_material(out, a, figures=True):
-    out = Path(out)
-    ch = {}
-    for c, n in enumerate("RGB"):
-        ch[f"angle_f.{n}"] = np.where(a.gradient.significant[c], a.gradient.angle_f[c], np.nan)
-        ch[f"consistent.{n}"] = a.gradient.consistent[c].astype(np.float32)
-        for k in ("measured", "diffuse_diffraction", "ct", "full"):
-            ch[f"{k}.{n}"] = a.slices[k][c]
-    write_exr(out / f"{a.name}.exr", ch)
-    if figures:
-        figure_gradient(a, out / "figures" / f"{a.name}_gradient.png")
-        figure_wavelength(a, out / "figures" / f"{a.name}_wavelength.png")
-        figure_components(a, out / "figures" / f"{a.name}_components.png")
-
-
-def write_index(out, analyses):
-    out = Path(out)
-    rows = [a.row() for a in analyses]
-    buf = io.StringIO()
-    if rows:
-        w = csv.DictWriter(buf, fieldnames=list(rows[0]), lineterminator="\n")
-        w.writeheader()
-        w.writerows(rows)
-    with writing(out / "analysis.csv"):
-        atomic_write_text(out / "analysis.csv", buf.getvalue())
-    cols = ["material", "verdict", "selected_lobes", "grad_score_g", "grad_cells", "grad_band_deg_g",
-            "wavelength_ratio", "rmse_log_full", "rmse_log_no_diffraction", "rmse_log_no_ct",
-            "peak_share_diffraction", "rmse_log_full_free", "peak_share_free"]
-    # short headers that wrap (the CSV name in the tooltip), so that the table fits 1400 px
-    heads = {"selected_lobes": "lobes kept", "grad_score_g": "gradient score G", "grad_cells": "decided cells",
-             "grad_band_deg_g": "band theta_h (deg) G", "wavelength_ratio": "wavelength ratio",
-             "rmse_log_full": "rmse_log full", "rmse_log_no_diffraction": "rmse_log no diffraction",
-             "rmse_log_no_ct": "rmse_log no CT", "peak_share_diffraction": "peak share diffraction",
-             "rmse_log_full_free": "rmse_log full, free peak", "peak_share_free": "peak share, free peak"}
-    h = ["<!doctype html><meta charset='utf-8'><title>brdfcl analysis</title>",
-         "<style>body{font-family:sans-serif;margin:1em;max-width:1400px}td,th{border:1px solid #ccc;"
-         "padding:2px 5px;font-size:13px}th{max-width:7em;vertical-align:bottom}table{border-collapse:collapse}"
-         ".diffraction{background:#fde8d8}.none{background:#e3eefc}"
-         ".figs img{display:block;width:100%;max-width:1400px;height:auto;margin:0.5em 0 1.5em}"
-         "h2{margin-bottom:0.2em}</style>",
-         "<h1>Diffraction in measured BRDFs: per-material verdicts</h1>",
-         "<p>Gradient test: share of the decidable wide-angle cells whose data gradient at phi_d ~ 90 deg "
-         "is closer to the diffraction prediction (parallel to grad f) than to the Cook-Torrance one "
-         "(theta_h = const tilted by 1/(cos ti cos to) and the Fresnel slope of the ridge). "
-         "Wavelength check: spread of the channels against f_c over their spread without the wavelength "
-         "(&lt; 1 collapses; &ge; 1.5 contradicts). Lobe "
-         "comparison: penalised rmse_log with and without each lobe. Peak share: part of the fitted "
-         "value at the specular peak carried by the diffraction lobe; the fits keep it at most equal to "
-         "Cook-Torrance's (the talk's model), and the *_free columns show the full fit without that "
-         "constraint.</p><table><tr>"]
-    h += [f"<th title='{c}'>{html.escape(heads.get(c, c))}</th>" for c in cols] + ["</tr>"]
-    for a, r in zip(analyses, rows):
-        cells = [f"<a href='#{html.escape(a.name)}'>{html.escape(a.name)}</a>"]
-        cells += [html.escape(str(r[c])).replace("+", "+<wbr>") for c in cols[1:]]
-        h.append(f"<tr class='{r['verdict']}'>" + "".join(f"<td>{c}</td>" for c in cells) + "</tr>")
-    h.append("</table>")
-    for a, r in zip(analyses, rows):
-        h.append(f"<h2 id='{html.escape(a.name)}'>{html.escape(a.name)}: {r['verdict']}</h2>"
-                 f"<p>lobes kept: {html.escape(r['selected_lobes'])}; final model: "
-                 f"{html.escape(r['final_model'])}</p><div class='figs'>")
-        h += [f"<a href='figures/{a.name}_{k}.png'><img src='figures/{a.name}_{k}.png' alt='{k}'></a>"
-              for k in ("gradient", "wavelength", "components")]
-        h.append("</div>")
-    with writing(out / "index.html"):
-        atomic_write_text(out / "index.html", "\n".join(h))

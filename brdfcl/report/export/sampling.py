@@ -26,6 +26,10 @@ grazing incidence).
 Everything is vectorised over directions: ``wi`` and ``wo`` are (n, 3) arrays, unit length, in the
 local frame; ``wi`` is the direction towards the viewer (Mitsuba's ``si.wi``), ``wo`` towards the
 light.  The BRDF is reciprocal, so the roles may be swapped.
+
+About 280 lines, one module: the components' draws, their densities and the mixture weights
+estimated from those draws are one sampler, checked together (tests/test_export_sampling.py),
+and none is used apart.
 """
 from __future__ import annotations
 

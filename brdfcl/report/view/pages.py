@@ -5,7 +5,9 @@ metric, parameters, verdict where the run analysed, flags) that sorts on a click
 header; ``OUT/report/NAME.html`` shows one material at a readable size: parameters with their
 standard errors, directional albedo, flags, lit spheres (measured | fitted | difference),
 slices and the analysis figures where there are some.  Plain files that work offline: no
-script or style from elsewhere.  `brdfcl fit-all` and `brdfcl analyze` both write it.
+script or style from elsewhere.  `brdfcl fit-all` and `brdfcl analyze` both write it (through
+brdfcl.report.writers.pages).  About 270 lines, one module: the two pages share their table
+cells, number formats and file writing, and nothing else uses them.
 """
 from __future__ import annotations
 
@@ -15,11 +17,20 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from brdfcl.model.compose import Model
-from brdfcl.report.figures import writing
+from brdfcl.report.files import writing
 from brdfcl.report.view.slices import write_slices
 from brdfcl.report.view.sphere import DEFAULT_LIGHTS, write_spheres
 
-METRICS = ("rmse_log", "rmse_l2", "rmse_cbrt", "rel_rmse")
+METRICS = ("rmse_log", "rmse_l2", "rmse_cbrt", "rel_rmse")    # first, in this order; then any other
+
+
+def error_columns(entries) -> list[str]:
+    """METRICS, then every other error the entries report (a metric registered in
+    brdfcl.model.metrics.IMPLEMENTED_METRICS adds its ``rmse_<name>``), in the order first seen."""
+    cols = list(METRICS)
+    for e in entries:
+        cols += [k for k in e.errors if k not in cols]
+    return cols
 # key, grazing and environment light: ~4 s a material with the slices (the environment costs most)
 REPORT_LIGHTS = tuple(light for light in DEFAULT_LIGHTS if light[0] in ("key", "grazing", "env"))
 STYLE = """body{font-family:sans-serif;margin:1em auto;max-width:1400px;color:#222}
@@ -139,7 +150,8 @@ def comparison_page(entries, title, rep) -> str:
         for g, ks in _groups(e.params).items():
             groups.setdefault(g, ks)
     analysed = any(e.verdict for e in entries)
-    heads = ["", "material"] + (["verdict"] if analysed else []) + list(METRICS) + list(groups) + ["status", "flags"]
+    metrics = error_columns(entries)
+    heads = ["", "material"] + (["verdict"] if analysed else []) + metrics + list(groups) + ["status", "flags"]
     h = [_head(title), f"<h1>{html.escape(title)}</h1>",
          f"<p>{len(entries)} materials. Click a column header to sort; a material's name opens its page "
          "(spheres, slices, parameters with standard errors). Thumbnails: measured | fitted under the "
@@ -154,7 +166,7 @@ def comparison_page(entries, title, rep) -> str:
                  _td(f"<a href='{_q(e.name)}.html'>{html.escape(e.name)}</a>", e.name, "l")]
         if analysed:
             cells.append(_td(html.escape(e.verdict or ""), e.verdict or "", "l"))
-        cells += [_num(e.errors.get(m)) for m in METRICS]
+        cells += [_num(e.errors.get(m)) for m in metrics]
         for ks in groups.values():
             vals = [e.params[k] for k in ks if k in e.params]
             cells.append(_td(" / ".join(f"{v:.3g}" for v in vals), sum(vals) / len(vals) if vals else ""))
@@ -173,8 +185,8 @@ def material_page(e, images, rep) -> str:
          f"<h1>{html.escape(e.name)}</h1>",
          f"<p>model <code>{html.escape(e.model)}</code>; status {html.escape(e.status)}"
          + (f"; verdict <b>{html.escape(e.verdict)}</b>" if e.verdict else "") + "</p>",
-         "<table><tr>" + "".join(f"<th>{m}</th>" for m in METRICS) + "</tr><tr>"
-         + "".join(_num(e.errors.get(m)) for m in METRICS) + "</tr></table>"]
+         "<table><tr>" + "".join(f"<th>{m}</th>" for m in error_columns([e])) + "</tr><tr>"
+         + "".join(_num(e.errors.get(m)) for m in error_columns([e])) + "</tr></table>"]
     if e.flags:
         h.append("<h2>Flags</h2><ul>" + "".join(f"<li class='flag'>{html.escape(f)}</li>" for f in e.flags) + "</ul>")
     h.append("<h2>Parameters</h2>" + _param_table(e))

@@ -18,7 +18,8 @@ from matplotlib.ticker import NullLocator
 
 from brdfcl.data.merl import MerlTable
 from brdfcl.model.lobes.cells import Cells
-from brdfcl.report.view.sphere import as_model, save_figure, table_lookup
+from brdfcl.report.view.lookup import table_lookup
+from brdfcl.report.view.sphere import as_model, save_figure
 
 INCIDENCE_DEG = (0.0, 30.0, 60.0, 75.0)
 PLANES = ((None, "in the plane of incidence"), (90.0, r"$\phi_o - \phi_i$ = 90 deg"),

@@ -9,19 +9,21 @@ of half vectors in the pixel's local frame, spaced logarithmically near the norm
 as sharp as alpha ~ 1e-3 are integrated as well as broad ones (a fixed set of light directions
 would show a sharp lobe as dots).  The BRDF is evaluated in each pixel's local frame (tangent
 from Duff et al.'s basis; brdfcl's lobes are isotropic), the model with its float64 reference,
-the table by trilinear lookup (of log values) in MERL's (theta_h, theta_d, phi_d) index space.
+the table by trilinear lookup (of log values) in MERL's (theta_h, theta_d, phi_d) index space
+(brdfcl.report.view.lookup, which the slice plots use too).
 """
 from __future__ import annotations
 
 import os
+from pathlib import Path
 
 import numpy as np
 
-from brdfcl.data.geometry import bin_centres
-from brdfcl.data.merl import N_PD, N_TD, N_TH, MerlTable
+from brdfcl.data.merl import MerlTable
 from brdfcl.model.compose import Model
 from brdfcl.model.lobes.cells import Cells
-from brdfcl.report.figures import writing
+from brdfcl.report.files import write_exr, writing
+from brdfcl.report.view.lookup import table_lookup
 
 CHUNK = 1 << 18                   # (pixel, sample) pairs evaluated at once
 SKY_ZENITH = np.array([0.35, 0.55, 1.0])
@@ -51,64 +53,6 @@ def as_model(model, values):
     if isinstance(values, dict):
         values = [values[n] for n in model.names]
     return model, np.asarray(values, dtype=np.float64)
-
-
-# --- measured data -----------------------------------------------------------------------------
-def rusinkiewicz(wi, wo):
-    """(theta_h, theta_d, phi_d in [0, pi)) of direction pairs (n = z): the inverse of
-    brdfcl.data.geometry.directions, phi_d folded by reciprocity as MERL does."""
-    h = wi + wo
-    h = h / np.linalg.norm(h, axis=-1, keepdims=True)
-    th = np.arccos(np.clip(h[..., 2], -1.0, 1.0))
-    ph = np.arctan2(h[..., 1], h[..., 0])
-    x = wi[..., 0] * np.cos(ph) + wi[..., 1] * np.sin(ph)          # Rz(-phi_h) wi
-    y = -wi[..., 0] * np.sin(ph) + wi[..., 1] * np.cos(ph)
-    st, ct = np.sin(th), np.cos(th)
-    dx, dz = x * ct - wi[..., 2] * st, x * st + wi[..., 2] * ct        # Ry(-theta_h)
-    return th, np.arccos(np.clip(dz, -1.0, 1.0)), np.mod(np.arctan2(y, dx), np.pi)
-
-
-def table_lookup(brdf, wi, wo, interp="log"):
-    """BRDF (3, n) of a MerlTable or (3, N_CELLS) array at direction pairs (n, 3).
-
-    Index coordinates are those of brdfcl.data.geometry.bin_centres (theta_h's is
-    90 sqrt(theta_h / (pi/2)) - 1/2); phi_d is periodic (reciprocity).  ``nearest``: the bin's
-    value, NaN where it is missing.  ``linear``: trilinear over the neighbouring bin centres
-    present (missing ones left out, weights renormalised), NaN where all are missing.  ``log``:
-    the same on log values (linear where a neighbour is <= 0): a sharp peak is interpolated
-    as the shape it has (on the demo mirror, alpha = 1e-3, the environment sphere of the table
-    is within 4 % of the model's, against 15 % interpolating linearly)."""
-    brdf = brdf.brdf() if isinstance(brdf, MerlTable) else brdf
-    th, td, pd = rusinkiewicz(np.asarray(wi, float), np.asarray(wo, float))
-    _, td0, pd0 = bin_centres()
-    u = [np.clip(N_TH * np.sqrt(th / (np.pi / 2)) - 0.5, 0, N_TH - 1),
-         np.clip(td / (td0[1] - td0[0]) - 0.5, 0, N_TD - 1), pd / (pd0[1] - pd0[0]) - 0.5]
-    if interp == "nearest":
-        i = [np.clip(np.floor(x + 0.5).astype(int), 0, n - 1) for x, n in zip(u, (N_TH, N_TD, N_PD))]
-        return brdf[:, (i[2] % N_PD) + N_PD * (i[1] + N_TD * i[0])]
-    if interp not in ("linear", "log"):
-        raise ValueError(f"interp '{interp}': nearest, linear or log")
-    rows = brdf.T                    # (N_CELLS, 3): one gather per corner, fastest when contiguous
-    lo = [np.minimum(np.floor(x).astype(int), n - 2) for x, n in zip(u, (N_TH, N_TD, N_PD + 1))]
-    fr = [x - i for x, i in zip(u, lo)]
-    acc, acc_log, wsum = (np.zeros((th.size, 3)) for _ in range(3))
-    positive = np.ones((th.size, 3), dtype=bool)
-    for corner in range(8):
-        b = [(corner >> k) & 1 for k in range(3)]
-        w = np.prod([f if bit else 1 - f for f, bit in zip(fr, b)], axis=0)[:, None]
-        v = rows[((lo[2] + b[2]) % N_PD) + N_PD * (lo[1] + b[1] + N_TD * (lo[0] + b[0]))]
-        ok = np.isfinite(v)
-        acc += np.where(ok, v, 0.0) * w
-        wsum += ok * w
-        if interp == "log":
-            pos = ok & (v > 0)
-            positive &= pos | ~ok | (w == 0)
-            acc_log += np.log(np.where(pos, v, 1.0)) * w * ok
-    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-        out = np.where(wsum > 0, acc / wsum, np.nan)
-        if interp == "log":
-            out = np.where(positive & (wsum > 0), np.exp(acc_log / wsum), out)
-    return out.T
 
 
 # --- rendering ---------------------------------------------------------------------------------
@@ -236,10 +180,6 @@ def write_spheres(out_dir, name, table, model, values, lights=DEFAULT_LIGHTS, si
     A: 1 on the sphere); and ``NAME-thumb.png``, measured | fitted at 96 px under the first light.
     Environment spheres are rendered at most ``env_size`` pixels wide (they cost 600 BRDF values a pixel).
     ``table``: a MerlTable or (3, N_CELLS) BRDF array; ``values``: a vector or {name: value}."""
-    from pathlib import Path
-
-    from brdfcl.report.figures import write_exr
-
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     model, values = as_model(model, values)

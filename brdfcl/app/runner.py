@@ -1,0 +1,196 @@
+"""The one job runner: what fit-all, analyze and cluster runs share, written once.
+
+A `Runner` lists a job's input (brdfcl.data.inputs.database_paths) and, before any work, refuses
+an output folder that is, holds or is inside the input or that cannot be written, removes what a
+killed run left half-written, and lets the writers that apply to the job (brdfcl.report.writers)
+prepare their folders.  The job then fits in batches (`batches`, `load`): a file that cannot be
+read is skipped with its one-line reason (`skip`: recorded in the RunReport and told to
+``on_skip``, by default the log); each finished material goes to every writer and advances the
+progress bar (`done`, `fitted`); `finish` lets the writers finish (summary.csv, the report pages)
+and times the run.  Resuming a fit job is brdfcl.app.resume.
+
+What differs between jobs is only how a batch is fitted: in this process (brdfcl.app.run), on a
+Dask cluster (brdfcl.app.cluster) or through the lobe comparison (brdfcl.app.analyze).  `Models`
+gives the writers the model, and the compiled engine on demand, of each model spec.
+"""
+from __future__ import annotations
+
+import os
+import sys
+import time
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from tqdm import tqdm
+
+from brdfcl.data.inputs import FileReader, check_output_dir, check_output_not_input, database_paths
+from brdfcl.data.merl import material_name
+from brdfcl.device.engine import Engine
+from brdfcl.model.compose import Model
+from brdfcl.optim.fit import FitOptions, Fitter, load_batch
+from brdfcl.report.files import remove_stale_temporaries
+from brdfcl.report.output import recorded_options
+from brdfcl.report.writers import Item, Job, Writer, writers_for
+
+
+def _quiet(message: str) -> None:
+    """The default log: says nothing."""
+
+
+@dataclass
+class RunReport:
+    """What a fit job returns (``fit_all``)."""
+
+    results: list = field(default_factory=list)       # FitResult of the materials fitted now
+    resumed: list = field(default_factory=list)       # names already finished in the output folder
+    skipped: dict = field(default_factory=dict)       # path -> reason
+    seconds: float = 0.0                              # until the last material (not the report pages)
+    outputs: dict = field(default_factory=dict)       # writer name -> the file its finish wrote
+
+    @property
+    def ok(self) -> bool:
+        return not self.skipped and all(r.success for r in self.results)
+
+    @property
+    def pages(self) -> Path | None:
+        """The run's report page (OUT/report/index.html), when written."""
+        return self.outputs.get("pages")
+
+
+class Progress:
+    """A progress bar on a terminal, one step per finished material; nothing otherwise."""
+
+    def __init__(self, total: int, quiet: bool):
+        self.bar = None
+        if not quiet and sys.stderr.isatty() and total:
+            self.bar = tqdm(total=total, unit="material", dynamic_ncols=True)
+
+    def done(self, name: str, note: str = "") -> None:
+        if self.bar:
+            self.bar.set_postfix_str(f"{name} {note}".strip())
+            self.bar.update(1)
+
+    def close(self) -> None:
+        if self.bar:
+            self.bar.close()
+
+
+class Models:
+    """Model, and compiled engine on demand, per model spec: what writing and exporting results
+    need, with the options every result records (brdfcl.report.output.recorded_options).  The fitted
+    model carries the run's fixed parameters; selected sub-models have none."""
+
+    def __init__(self, opts: FitOptions, engine: Engine | None = None, select_lobes: bool = False,
+                 free_peak: bool = False):
+        self.opts = opts
+        self.options = recorded_options(opts, select_lobes, free_peak)
+        main = Model(opts.model, fixed=opts.fixed)
+        self.main = main.spec
+        self._models = {main.spec: main}
+        self._engines = {main.spec: engine} if engine is not None else {}
+        self._fitter: Fitter | None = None
+
+    def main_fitter(self) -> Fitter:
+        """The Fitter of the run's model; exports of that model share its engine (built once)."""
+        if self._fitter is None:
+            self._fitter = Fitter(self.opts, engine=self._engines.get(self.main))
+            self._engines[self.main] = self._fitter.engine
+        return self._fitter
+
+    def model(self, spec: str) -> Model:
+        if spec not in self._models:
+            self._models[spec] = Model(spec)
+        return self._models[spec]
+
+    def engine(self, spec: str) -> Engine:
+        if spec == self.main and spec not in self._engines:
+            return self.main_fitter().engine
+        if spec not in self._engines:
+            o = self.opts
+            self._engines[spec] = Engine(self.model(spec), device=o.device, real=o.real, metric=o.metric,
+                                         cosw=o.cosw, vector_width=getattr(o, "vector_width", None))
+        return self._engines[spec]
+
+
+class Runner:
+    """One run of a job (see the module's docstring).  ``out`` None: nothing is written, the
+    results are only returned; ``job`` holds the Job's other fields (brdfcl.report.writers.Job)."""
+
+    def __init__(self, source: Any, out: str | os.PathLike | None, kind: str, *,
+                 log: Callable[[str], None] | None = None,
+                 on_skip: Callable[[str, str], None] | None = None, quiet: bool = True, **job: Any):
+        self.t0 = time.perf_counter()
+        self.log = log or _quiet
+        self.on_skip = on_skip or (lambda path, why: self.log(f"skipped: {why}"))
+        self.quiet = quiet
+        self.paths = database_paths(source)
+        self.report = RunReport()
+        self.progress = Progress(0, True)
+        self.job: Job | None = None
+        self.writers: list[Writer] = []
+        if out is not None:                     # one-line errors, before any work
+            check_output_not_input(source, out, self.paths)
+            checked = check_output_dir(out)
+            remove_stale_temporaries(checked)
+            tables = {material_name(p): p for p in self.paths}
+            self.job = Job(kind, checked, tables=tables, log=self.log, **job)
+            self.writers = writers_for(self.job)
+            for w in self.writers:
+                w.prepare(self.job)
+
+    @staticmethod
+    def batches(paths: Sequence[str], size: int) -> Iterator[Sequence[str]]:
+        for s in range(0, len(paths), size):
+            yield paths[s:s + size]
+
+    @contextmanager
+    def tracking(self, total: int) -> Iterator[None]:
+        """A progress bar over ``total`` materials while the job fits (closed however it ends)."""
+        self.progress = Progress(total, self.quiet)
+        try:
+            yield
+        finally:
+            self.progress.close()
+
+    def skip(self, path: str, why: object) -> None:
+        """A file that cannot be read: recorded with its reason, and told."""
+        self.report.skipped[str(path)] = str(why)
+        self.on_skip(str(path), str(why))
+
+    def load(self, part: Sequence[str], fitter: Fitter) -> tuple[list[str], Any, Any, list[str]] | None:
+        """(names, full data, coarse data, their paths) of the readable files of ``part``, the
+        others skipped; None when none could be read."""
+        def on_error(item, e):
+            self.skip(getattr(item, "path", None) or str(item), e)
+        names, full, coarse = load_batch([FileReader(p) for p in part], fitter, on_error)
+        if not names:
+            return None
+        self.log(f"batch of {len(names)} materials loaded")
+        return names, full, coarse, [p for p in part if p not in self.report.skipped]
+
+    def done(self, item: Item, note: str = "") -> None:
+        """A finished material: to every writer, and one step of the progress bar."""
+        if self.job is not None:
+            self.job.items.append(item)
+            for w in self.writers:
+                w.write(self.job, item)
+        self.progress.done(item.name, note)
+
+    def fitted(self, res: Any, extra: dict | None = None) -> None:
+        """A finished FitResult (``extra``: recorded beside it in NAME.json)."""
+        self.report.results.append(res)
+        item = Item.of_fit(self.job, res, extra) if self.job is not None else Item(res.name)
+        self.done(item, f"rmse_{res.metric} {res.errors['rmse_' + res.metric]:.4g}")
+
+    def finish(self) -> RunReport:
+        """The run has completed: time it, then let every writer finish."""
+        self.report.seconds = time.perf_counter() - self.t0
+        if self.job is not None:
+            for w in self.writers:
+                made = w.finish(self.job, self.job.items)
+                if made is not None:
+                    self.report.outputs[w.name] = made
+        return self.report

@@ -1,0 +1,61 @@
+"""How every output file is written: atomically, and a failed write as one line naming the file.
+
+A run stopped at any moment leaves each output either as it was or complete: files are written
+under a temporary name beside them and renamed into place (``atomic_write_text``, ``write_exr``;
+the figures do the same).  A temporary file left by a killed run is removed by the next run
+(``remove_stale_temporaries``).  A write that fails (a full disk, a read-only folder, a folder
+where the file goes) is an OSError of one line, ``PATH: cannot write: why`` (``writing``).
+"""
+from __future__ import annotations
+
+import os
+import re
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+import numpy as np
+
+_TEMPORARY = re.compile(r"\.tmp\d+$|\.tmp\.(exr|png)$")
+
+
+@contextmanager
+def writing(path: str | os.PathLike) -> Iterator[None]:
+    """A failed write of ``path`` as one line naming it (OpenEXR reports I/O errors as RuntimeError)."""
+    try:
+        yield
+    except (OSError, RuntimeError) as e:
+        why = e.strerror if isinstance(e, OSError) and e.strerror else str(e)
+        why = (why.strip().splitlines() or [type(e).__name__])[0]
+        raise OSError(f"{path}: cannot write: {why}") from e
+
+
+def atomic_write_text(path: str | os.PathLike, text: str) -> None:
+    """Write ``text`` to ``path`` through a temporary file beside it (``.NAME.tmpPID``)."""
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
+    tmp.write_text(text)
+    os.replace(tmp, path)
+
+
+def write_exr(path: str | os.PathLike, channels: dict[str, np.ndarray]) -> None:
+    """float32 images, one per named channel, into one OpenEXR file (ZIP compressed), atomically."""
+    # local: only the analysis and the report pages write EXR
+    import OpenEXR
+    data = {k: np.ascontiguousarray(np.nan_to_num(v, nan=-1.0), dtype=np.float32) for k, v in channels.items()}
+    hdr = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    tmp = str(path) + ".tmp.exr"
+    with writing(path):
+        with OpenEXR.File(hdr, data) as f:
+            f.write(tmp)
+        Path(tmp).replace(path)
+
+
+def remove_stale_temporaries(out_dir: str | os.PathLike) -> None:
+    """Temporary files left by a run killed mid-write (``*.tmpPID``; final names are never partial)."""
+    for p in Path(out_dir).iterdir():
+        if p.is_file() and _TEMPORARY.search(p.name):
+            try:
+                p.unlink()
+            except OSError:
+                pass
