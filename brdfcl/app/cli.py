@@ -82,7 +82,8 @@ def cmd_fit_all(args):
     try:
         report = fit_all(source, args.out, opts, batch=args.batch, export=args.export_merl,
                          quiet=args.quiet, log=log, client=client, select_lobes=args.select_lobes,
-                         free_peak=args.free_peak, overwrite=args.overwrite, pages=not args.no_report)
+                         free_peak=args.free_peak, overwrite=args.overwrite, pages=not args.no_report,
+                         rgb=args.rgb)
     finally:
         if client is not None:
             client.close()
@@ -191,10 +192,14 @@ def build_parser():
     p.add_argument("--materials", default=None, help="comma-separated subset of the demo materials")
     p.set_defaults(func=cmd_synth)
 
-    p = sub.add_parser("fit-all", help="fit every .binary of a folder (or --demo)")
+    p = sub.add_parser("fit-all", help="fit every measurement of a folder: MERL .binary, Cornell .brdf, "
+                                       "CSV samples (or --demo)")
     add_database_arguments(p, "fit", "output folder, outside the input data (resumes results "
                                       "made there with the same options)", fit_all)
     p.add_argument("--export-merl", action="store_true", help="write each fitted model as NAME.binary")
+    p.add_argument("--rgb", action="store_true",
+                   help="fit spectral samples as linear sRGB (D65, CIE 1931 2 deg; needs colour-science: "
+                        "pip install brdfcl[rgb]) instead of one channel per band")
     p.add_argument("--overwrite", action="store_true",
                    help="refit and replace results in --out that were made with other options "
                         "(without it such results stop the run)")

@@ -28,8 +28,18 @@ from brdfcl.app.analyze import analyze
 from brdfcl.app.cluster import fit_on_cluster
 from brdfcl.app.resume import OPTION_FLAGS, ResultsDiffer, resume
 from brdfcl.app.runner import Models, Progress, Runner, RunReport
-from brdfcl.data.inputs import FileReader, InputOverwriteError, check_output_dir, check_output_not_input, database_paths
+from brdfcl.data.errors import DataError
+from brdfcl.data.inputs import (
+    FileReader,
+    InputOverwriteError,
+    check_output_dir,
+    check_output_not_input,
+    database_paths,
+    is_table,
+)
 from brdfcl.data.merl import material_name
+from brdfcl.data.readers import read_samples
+from brdfcl.data.rgb import to_rgb
 from brdfcl.optim.fit import FitOptions
 from brdfcl.report.writers import FIT, IMPLEMENTED_WRITERS, Job, export_writers
 
@@ -41,7 +51,7 @@ __all__ = ["FileReader", "InputOverwriteError", "Models", "OPTION_FLAGS", "Progr
 
 def fit_all(source, out=None, options: FitOptions | None = None, batch=100, export: bool | str | Iterable[str] = False,
             quiet=True, log=None, client=None, select_lobes=False, free_peak=False, overwrite=False,
-            pages=False, **kw) -> RunReport:
+            pages=False, rgb=False, **kw) -> RunReport:
     """Fit every material of a database; write results to ``out`` if given.
 
     ``source``: folder, file or list of files.  ``options`` or keyword arguments
@@ -52,14 +62,29 @@ def fit_all(source, out=None, options: FitOptions | None = None, batch=100, expo
     (InputOverwriteError).  Results already in ``out`` are reused when made with the same
     options; results of other options raise ResultsDiffer before any work, or with
     ``overwrite`` are refitted and replaced.  ``pages``: write the run's report
-    (``OUT/report/index.html``, brdfcl.report.view.pages) at the end (the CLI does unless --no-report)."""
+    (``OUT/report/index.html``, brdfcl.report.view.pages) at the end (the CLI does unless --no-report).
+
+    Files of scattered samples (brdfcl.data.readers: Cornell .brdf, CSV) in ``source`` are fitted
+    with one channel per band at its wavelength, materials with the same bands in one batch
+    (brdfcl.optim.fit.Fitter.fit_samples); ``rgb`` first converts their spectra to linear sRGB
+    (brdfcl.data.rgb.to_rgb: D65, CIE 1931 2 deg), fitted with the R, G, B wavelengths of MERL
+    tables.  Their fits have no MERL / BRDF Explorer export and no report page (those read a MERL
+    table)."""
     opts = options or FitOptions(**kw)
     if select_lobes:        # what the lobe comparison fits with (brdfcl.analysis.analyze), so what is recorded
         opts = replace(opts, fixed={}, ct_peak=not free_peak)
     models = Models(opts, select_lobes=select_lobes, free_peak=free_peak)
-    run = Runner(source, out, FIT, log=log, quiet=quiet, options={**models.options, "export": bool(export)},
+    recorded = {**models.options, "export": bool(export), **({"rgb": True} if rgb else {})}
+    run = Runner(source, out, FIT, log=log, quiet=quiet, options=recorded,
                  exports=_exports(export), pages=pages, model=models.model, engine=models.engine)
-    todo = resume(run, models.options, overwrite) if run.job is not None else run.paths
+    todo = resume(run, recorded, overwrite) if run.job is not None else run.paths
+    samples = [p for p in todo if not is_table(p)]
+    if samples and (select_lobes or client is not None):
+        raise ValueError(f"{samples[0]}: scattered samples are fitted here only, without "
+                         f"{'--select-lobes' if select_lobes else 'a cluster'} (not yet supported)")
+    if samples:
+        todo = [p for p in todo if is_table(p)]
+        _fit_samples(run, samples, models, batch, rgb)
     if select_lobes:
         _fit_selected(run, todo, opts, batch)
     elif client is not None:
@@ -98,6 +123,29 @@ def _fit_here(run: Runner, todo: list[str], models: Models, batch: int) -> None:
             if loaded is not None:
                 names, full, coarse, _ = loaded
                 fitter.fit(names, full, coarse, on_result=run.fitted, log=run.log)
+
+
+def _fit_samples(run: Runner, paths: list[str], models: Models, batch: int, rgb: bool) -> None:
+    """Scattered samples: read (a bad file skipped with its reason), optionally to RGB, grouped by
+    their bands, each group fitted a batch at a time."""
+    groups: dict[tuple, list] = {}
+    for p in paths:
+        try:
+            s = read_samples(p)
+            if rgb:
+                s = to_rgb(s)
+        except (DataError, ValueError) as e:
+            run.skip(p, e)
+            continue
+        except ImportError as e:        # --rgb without colour-science: one line for the whole run
+            raise ValueError(str(e)) from None
+        groups.setdefault(tuple(float(x) for x in s.wavelengths), []).append(s)
+    with run.tracking(sum(len(g) for g in groups.values())):
+        for lambdas, group in groups.items():
+            fitter = models.sample_fitter(lambdas)
+            for part in run.batches(group, batch):
+                run.log(f"batch of {len(part)} sample sets loaded ({len(lambdas)} channels)")
+                fitter.fit_samples(part, on_result=run.fitted, log=run.log)
 
 
 def _fit_selected(run: Runner, todo: list[str], opts: FitOptions, batch: int) -> None:

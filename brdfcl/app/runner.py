@@ -26,7 +26,7 @@ from typing import Any
 
 from tqdm import tqdm
 
-from brdfcl.data.inputs import FileReader, check_output_dir, check_output_not_input, database_paths
+from brdfcl.data.inputs import FileReader, check_output_dir, check_output_not_input, database_paths, is_table
 from brdfcl.data.merl import material_name
 from brdfcl.device.engine import Engine
 from brdfcl.model.compose import Model
@@ -89,9 +89,10 @@ class Models:
         self.options = recorded_options(opts, select_lobes, free_peak)
         main = Model(opts.model, fixed=opts.fixed)
         self.main = main.spec
-        self._models = {main.spec: main}
+        self._models: dict[Any, Model] = {main.spec: main}
         self._engines = {main.spec: engine} if engine is not None else {}
         self._fitter: Fitter | None = None
+        self._fitters: dict[tuple, Fitter] = {}
 
     def main_fitter(self) -> Fitter:
         """The Fitter of the run's model; exports of that model share its engine (built once)."""
@@ -100,10 +101,25 @@ class Models:
             self._engines[self.main] = self._fitter.engine
         return self._fitter
 
-    def model(self, spec: str) -> Model:
+    def model(self, spec: str, lambdas: tuple | None = None) -> Model:
+        """The model of a spec (with the run's fixed parameters for its own), at ``lambdas`` (one
+        wavelength per channel; default the R, G, B of MERL tables)."""
+        if lambdas is not None:
+            key = (spec, tuple(lambdas))
+            if key not in self._models:
+                fixed = self.opts.fixed if spec == self.main else None
+                self._models[key] = Model(spec, fixed=fixed, lambdas=tuple(lambdas))
+            return self._models[key]
         if spec not in self._models:
             self._models[spec] = Model(spec)
         return self._models[spec]
+
+    def sample_fitter(self, lambdas: tuple) -> Fitter:
+        """The Fitter of the run's model for scattered samples with these bands (built once each)."""
+        key = ("samples", tuple(lambdas))
+        if key not in self._fitters:
+            self._fitters[key] = Fitter(self.opts, lambdas=lambdas)
+        return self._fitters[key]
 
     def engine(self, spec: str) -> Engine:
         if spec == self.main and spec not in self._engines:
@@ -135,7 +151,7 @@ class Runner:
             check_output_not_input(source, out, self.paths)
             checked = check_output_dir(out)
             remove_stale_temporaries(checked)
-            tables = {material_name(p): p for p in self.paths}
+            tables = {material_name(p): p for p in self.paths if is_table(p)}
             self.job = Job(kind, checked, tables=tables, log=self.log, **job)
             self.writers = writers_for(self.job)
             for w in self.writers:

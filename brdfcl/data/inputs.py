@@ -13,6 +13,7 @@ import os
 from pathlib import Path
 
 from brdfcl.data.merl import MerlError, list_database, read_merl
+from brdfcl.data.readers import find_measurements
 
 
 class InputOverwriteError(ValueError):
@@ -20,10 +21,22 @@ class InputOverwriteError(ValueError):
 
 
 def database_paths(source) -> list[str]:
-    """A folder (its .binary files), a single file, or a list of files."""
+    """A folder (its MERL .binary files and the scattered-sample files brdfcl.data.readers reads:
+    .brdf, .csv; sorted by name), a single file, or a list of files."""
     if isinstance(source, (str, os.PathLike)):
-        return [os.fspath(source)] if os.path.isfile(source) else list_database(source)
+        if os.path.isfile(source):
+            return [os.fspath(source)]
+        samples = [os.fspath(p) for p in find_measurements(source)] if os.path.isdir(source) else []
+        if not samples:
+            return list_database(source)          # its one-line error when there is nothing
+        tables = [p for p in (os.path.join(source, f) for f in os.listdir(source)) if is_table(p)]
+        return sorted(tables + samples, key=lambda p: os.path.basename(p))
     return [os.fspath(p) for p in source]
+
+
+def is_table(path) -> bool:
+    """A MERL table (.binary); anything else a reader of brdfcl.data.readers reads as samples."""
+    return os.fspath(path).lower().endswith(".binary")
 
 
 class FileReader:

@@ -57,7 +57,8 @@ class Fitter:
         """``lambdas``: the channels' wavelengths (um) when they are not the R, G, B of a MERL table
         (spectral samples: one per band)."""
         self.opts = opts
-        channels = {} if lambdas is None else {"lambdas": tuple(lambdas)}
+        self.lambdas = None if lambdas is None else tuple(float(x) for x in lambdas)
+        channels = {} if self.lambdas is None else {"lambdas": self.lambdas}
         self.model = Model(opts.model, fixed=opts.fixed, **channels)
         self.engine = engine or Engine(self.model, device=opts.device, real=opts.real,
                                        metric=opts.metric, cosw=opts.cosw, vector_width=opts.vector_width)
@@ -196,7 +197,8 @@ class _Batch:
                             params=f.model.as_dict(v[j]), success=bool(done.success[j]), status=done.status[j],
                             loss=float(done.fun[j]), errors={k: float(e[j]) for k, e in done.errors.items()},
                             seconds=t, nfev=int(self.global_nfev[i] + done.nfev[i]), history=self.history[i],
-                            bounds_hit=done.bounds_hit[j], stages={"global": self.t_global}, **judged[j])
+                            bounds_hit=done.bounds_hit[j], stages={"global": self.t_global},
+                            lambdas=self.fitter.lambdas, **judged[j])
             self.done[i] = res
             if self.on_result:
                 self.on_result(res)

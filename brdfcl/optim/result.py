@@ -53,6 +53,7 @@ class FitResult:
     uncertainty: dict | None = None  # {"std_error": {name: float|None}, "correlation": {...}, "method"}
     albedo: dict | None = None       # {"theta_i_deg": [...], "channels": [[one per channel] per angle]}
     flags: list = field(default_factory=list)   # one line per reason not to trust the fit
+    lambdas: tuple | None = None     # the channels' wavelengths (um) when not a MERL table's R, G, B
 
     def as_dict(self) -> dict:
         return asdict(self)

@@ -51,7 +51,9 @@ class Item:
     def of_fit(cls, job: Job, res: Any, extra: dict | None = None) -> Item:
         """The item of a finished FitResult: its NAME.json document made once, for every writer
         (the run's options recorded in it, ``extra`` added, e.g. the verdict of --select-lobes)."""
-        doc = result_document(res, job.model(res.model), extra, job.options)
+        lambdas = getattr(res, "lambdas", None)
+        doc = result_document(res, job.model(res.model) if lambdas is None else job.model(res.model, lambdas),
+                              extra, job.options)
         return cls(res.name, job.tables.get(res.name), doc)
 
 
@@ -67,7 +69,7 @@ class Job:
     figures: bool = False                         # the analysis figures (PNG)
     pages: bool = False                           # the run's report, OUT/report/
     tables: dict[str, str] = field(default_factory=dict)     # material name -> measured file
-    model: Callable[[str], Model] = Model         # the Model of a spec (the run's own carries --fix)
+    model: Callable[..., Model] = Model           # the Model of a spec (and wavelengths; the run's carries --fix)
     engine: Callable[[str], Engine] | None = None  # a compiled Engine of a spec (to tabulate fits)
     log: Callable[[str], None] = _quiet
     items: list[Item] = field(default_factory=list)   # finished so far, in order
@@ -122,7 +124,10 @@ class ExportWriter(Writer):
     def write(self, job: Job, item: Item) -> None:
         assert item.doc is not None, "an export writes fits"
         path = self.path(job.out, item.name)
-        if self.wanted(job):
+        if self.wanted(job) and len(item.doc.get("wavelengths_um") or (0, 0, 0)) != 3:
+            job.log(f"{item.name}: no {self.name} export: it is a fit of {len(item.doc['wavelengths_um'])} "
+                    f"spectral channels (fit with --rgb for an RGB model)")
+        elif self.wanted(job):
             self.export(path, item.doc, job)
         elif path.is_file() and not path.is_symlink():      # it tabulates a fit this one replaces
             path.unlink()

@@ -1,0 +1,59 @@
+"""brdfcl fit-all on a folder mixing MERL tables, Cornell spectral samples and a bad CSV, as a
+user runs it: every readable file fitted, the bad one skipped in one line, resumable, and
+--rgb fitting the spectra as linear sRGB."""
+import json
+import shutil
+import subprocess
+import sys
+
+import pytest
+
+CLI = [sys.executable, "-m", "brdfcl.app.cli"]
+
+
+@pytest.fixture(scope="module")
+def mixed(tmp_path_factory, demo_db, krylon):
+    d = tmp_path_factory.mktemp("mixed")
+    shutil.copy(krylon.path, d / "krylon_blue.brdf")
+    shutil.copy(demo_db / "synth-fabric.binary", d)
+    (d / "bad.csv").write_text("theta_i,phi_i,theta_o,phi_o,R,G\n10,0,20,180,0.1\n")
+    return d
+
+
+def _run(*args):
+    return subprocess.run([*CLI, "fit-all", *map(str, args), "--quiet", "--no-report"], capture_output=True, text=True)
+
+
+def test_a_folder_mixing_formats(mixed, tmp_path):
+    out = tmp_path / "o"
+    r = _run(mixed, "--out", out)
+    assert r.returncode == 1, r.stderr          # a file was skipped
+    assert "fitted 2 materials" in r.stdout and "1 skipped" in r.stdout
+    skipped = [ln for ln in r.stderr.splitlines() if ln.startswith("skipped:")]
+    assert skipped == [f"skipped: {mixed / 'bad.csv'}:2: 5 columns, expected 6 as in the header"]
+    k = json.loads((out / "krylon_blue.json").read_text())
+    assert len(k["wavelengths_um"]) == 31 and "diffuse.rho_550nm" in k["params"] and k["success"]
+    m = json.loads((out / "synth-fabric.json").read_text())
+    assert m["wavelengths_um"] == [0.645, 0.526, 0.444]
+    header = (out / "summary.csv").read_text().splitlines()[0].split(",")
+    assert "diffuse.rho_r" in header and "diffuse.rho_700nm" in header
+    again = _run(mixed, "--out", out)
+    assert "2 already done" in again.stdout
+
+
+def test_rgb_fits_the_spectra_as_srgb_and_exports_them(mixed, tmp_path):
+    pytest.importorskip("colour")
+    out = tmp_path / "o"
+    r = _run(mixed, "--out", out, "--rgb", "--export-merl")
+    assert "fitted 2 materials" in r.stdout, r.stderr
+    k = json.loads((out / "krylon_blue.json").read_text())
+    assert k["wavelengths_um"] == [0.645, 0.526, 0.444] and k["options"]["rgb"] is True
+    assert (out / "krylon_blue.binary").stat().st_size > 0
+
+
+def test_spectral_fits_are_not_exported_as_merl(mixed, tmp_path):
+    out = tmp_path / "o"
+    r = subprocess.run([*CLI, "fit-all", str(mixed), "--out", str(out), "--export-merl", "--no-report"],
+                       capture_output=True, text=True)
+    assert (out / "synth-fabric.binary").exists() and not (out / "krylon_blue.binary").exists()
+    assert "krylon_blue: no merl export: it is a fit of 31 spectral channels" in r.stderr
