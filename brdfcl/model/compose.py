@@ -12,6 +12,9 @@ The optimiser works on ``x``: the free parameters, in log space where the
 parameter is flagged ``log`` (alpha, a, amplitudes).  Everything the kernels
 and exports need (slot order, bounds, host constants) is derived here from
 the lobe descriptions.
+
+One module (~270 lines): parsing a model string, its parameter slots, its spaces and its
+reference are the one description that the kernels, optimiser and exports all read.
 """
 from __future__ import annotations
 

@@ -5,6 +5,9 @@ Each lobe kind (diffuse.py, cooktorrance.py, diffraction.py) says only which fac
 multiplies (`Factor`s).  The product rule, its float64 reference and the OpenCL C that computes
 the same are written once, here, for every lobe: factors that do not depend on the channel are
 evaluated once and shared, the rest once per channel.
+
+One module (~250 lines) because the float64 product rule and the OpenCL one must be read side
+by side: they are the two halves of one formula.
 """
 from __future__ import annotations
 
