@@ -153,7 +153,7 @@ def test_the_walker_sees_the_imports():
     assert len(graph) > 30
     assert (False in [local for _, local in graph["brdfcl.app.run"]["brdfcl.app.analyze"]])
     assert all(local for _, local in graph["brdfcl.report.writers.pages"]["brdfcl.report.view.pages"])
-    assert "brdfcl.model.lobes.cells" in graph["brdfcl.device.engine"]
+    assert "brdfcl.model.lobes.cells" in graph["brdfcl.device.cellsets"]
     assert "brdfcl.model.compose" in graph["brdfcl.report.view.pages"]
     assert "brdfcl.report.writers" in graph["brdfcl.app.runner"]
 
