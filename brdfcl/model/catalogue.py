@@ -6,6 +6,8 @@ descriptions themselves, so the documentation cannot drift from the code.
 """
 from __future__ import annotations
 
+from brdfcl.model.compose import SHADOWING_ALIASES
+from brdfcl.model.lobes import CookTorrance, Diffraction, Diffuse
 from brdfcl.model.terms import REGISTRY, Param, Term
 
 KINDS = {"ndf": "Normal distributions D (Cook-Torrance lobes: `ggx`, `beckmann`, `sgd`, `epd`)",
@@ -49,3 +51,42 @@ def terms_markdown() -> str:
         out += [_row(t) for t in REGISTRY[kind].values()]
         out.append("")
     return "\n".join(out)
+
+
+def _names(kind: str, default: str | None = None) -> str:
+    return ", ".join(f"`{n}`" + (" (default)" if n == default else "") for n in REGISTRY[kind])
+
+
+def _params(params) -> str:
+    out = []
+    for p in params:
+        unit = f" ({p.unit})" if p.unit else ""
+        out.append(f"`{p.name}_{{r,g,b}}`{unit}" if p.per_channel else f"`{p.name}`{unit}")
+    return ", ".join(out)
+
+
+def _per_term(kind: str) -> str:
+    return "; ".join(f"{n}: {_params(t.params)}" for n, t in REGISTRY[kind].items() if t.params)
+
+
+def lobes_markdown() -> str:
+    """The lobes a model string may hold, with their options and parameters (the README's model
+    table), from the lobe classes and the term registry."""
+    ct, dr = CookTorrance(), Diffraction()
+    rows = [
+        ("`diffuse`", "", _params([Diffuse.amplitude])),
+        ("`diffraction`", f"PSD {_names('psd', dr.psd.name)}; Fresnel {_names('fresnel', dr.fresnel.name)}",
+         f"{_params([Diffraction.amplitude])}, the PSD's ({_per_term('psd')}), the Fresnel's"),
+        (", ".join(f"`{n}`" for n in REGISTRY["ndf"]) + " (Cook-Torrance)",
+         f"G {', '.join(f'`{a}`' for a in SHADOWING_ALIASES)} (default `smith` where the D has one, else "
+         f"`vcavity`); Fresnel {_names('fresnel', ct.fresnel.name)}",
+         f"{_params([CookTorrance.amplitude])}, the D's ({_per_term('ndf')}), "
+         f"the Fresnel's ({_per_term('fresnel')})"),
+    ]
+    lines = [LOBES_BEGIN, "| lobe | options | parameters |", "| --- | --- | --- |"]
+    lines += [f"| {a} | {b} | {c} |" for a, b, c in rows]
+    return "\n".join(lines + [LOBES_END])
+
+
+LOBES_BEGIN = "<!-- lobes: made by brdfcl.model.catalogue.lobes_markdown; tests/test_catalogue.py checks it -->"
+LOBES_END = "<!-- end of lobes -->"
