@@ -18,7 +18,7 @@ from brdfcl.data.geometry import DEFAULT_CUTOFF_DEG, table_geometry
 from brdfcl.device import selftest, width
 from brdfcl.device.cellsets import CellSet, build_cellset, build_sample_cellset, extract, select_cells
 from brdfcl.device.platforms import has_fp64, pick_device
-from brdfcl.device.program import KERNELS, ProgramError, build, crash_guard, repair_pocl_cache
+from brdfcl.device.program import KERNELS, ProgramError, build, crash_guard, keep_attempt, repair_pocl_cache
 from brdfcl.device.width import is_cpu
 from brdfcl.kernels.codegen import KernelOptions, jtj_pairs, n_outputs, render
 from brdfcl.model.compose import Model
@@ -96,6 +96,7 @@ class Engine:
                 result = selftest.check(self) if verify else None
                 if result is None or result.ok:
                     if failures:
+                        keep_attempt(self.source, self.device, attempt)
                         _log.warning(f"brdfcl: rebuilt the {self.model.spec} program on {self.device.name}: "
                                      f"the cached build failed ({failures[0]})")
                     _PROGRAMS[key] = (program, result)

@@ -11,6 +11,7 @@ fails the caller's check, is built again under a different cache key.
 """
 from __future__ import annotations
 
+import gc
 import hashlib
 import json
 import os
@@ -147,7 +148,7 @@ def crash_guard(source: str, device, log=None):
     building and testing the program; a marker left by a process that died there (PoCL aborts
     the whole process on some broken cache entries, which no check in Python can catch) moves
     this program to the next cache key for good, so one crash does not break every later run."""
-    key = hashlib.sha1(f"{device.name}\0{device.driver_version}\0{source}".encode()).hexdigest()[:20]
+    key = _guard_key(source, device)
     d = cache_dir() / "building"
     salts = cache_dir() / "program-keys.json"
     try:
@@ -171,6 +172,20 @@ def crash_guard(source: str, device, log=None):
         yield attempt
     finally:
         marker.unlink(missing_ok=True)
+
+
+def _guard_key(source: str, device) -> str:
+    return hashlib.sha1(f"{device.name}\0{device.driver_version}\0{source}".encode()).hexdigest()[:20]
+
+
+def keep_attempt(source: str, device, attempt: int) -> None:
+    """A build under cache-key ``attempt`` worked where the one before failed: later runs start
+    there (else each would meet the broken entry again, and the pip PoCL aborts at exit after a
+    failed build)."""
+    try:
+        update_json(cache_dir() / "program-keys.json", _guard_key(source, device), attempt)
+    except OSError:
+        pass
 
 
 def read_json(path: Path) -> dict:
@@ -218,12 +233,17 @@ def build(ctx, device, source: str, attempt: int = 0):
         # PoCL's cache key hashes the preprocessed source (comments are gone) and the build
         # options: a define in the options gives a fresh, separate entry.
         options.append(f"-DBRDFCL_CACHE_KEY={attempt}")
+    program = cl.Program(ctx, source)
     try:
-        program = cl.Program(ctx, source).build(options=options, devices=[device])
+        program.build(options=options, devices=[device])
         kernels = {k: cl.Kernel(program, k) for k in KERNELS}
     except cl.Error as e:
-        raise ProgramError(f"OpenCL build failed on {device.name}: {_what(e)}") from None
-    return program, kernels
+        failed = ProgramError(f"OpenCL build failed on {device.name}: {_what(e)}")
+    else:
+        return program, kernels
+    del program
+    gc.collect()                # release the failed program now: PoCL cannot tear down its IR later
+    raise failed
 
 
 def build_log(program, device) -> str:
