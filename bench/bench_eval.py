@@ -61,31 +61,63 @@ def median_time(fn, repeat):
     return float(np.median(ts))
 
 
+TRANSCENDENTALS = ("exp", "log", "log1p", "sqrt", "erfc", "pow")
+
+
 def roof_source(vw):
-    """Streaming-read and FMA kernels in vectors of the engine's own width (a width the
-    device's compiler may not target, such as 16 on a Zen 4 with the pip PoCL, fails to build)."""
+    """Streaming-read, FMA-peak and per-builtin kernels in vectors of the engine's own width (a
+    width the device's compiler may not target, such as 16 on a Zen 4 with the pip PoCL, fails
+    to build).
+
+    The stream kernel reads one contiguous block per work-item (a CPU reads in cache lines; a
+    GPU-style stride of the global size measured 4 GB/s against 35-64 GB/s).  The FMA kernel
+    writes ``a * b + c`` (contracted to an FMA: the pip PoCL's ``fma()`` is an out-of-line call)
+    on 8 independent chains, enough to hide the FMA latency.  Each builtin kernel runs the same
+    8 chains through one builtin, so its time over the FMA kernel's is the builtin's cost in
+    FMA-equivalents on this device and build (SLEEF's log1p is ~100 instructions, not one)."""
     v = f"float{vw}" if vw > 1 else "float"
     lanes = " + ".join(f"s.s{i:x}" for i in range(vw)) if vw > 1 else "s"
-    return f"""
+    chains = [f"x{i}" for i in range(8)]
+    init = ", ".join(f"{x} = ({v})(g * 1e-7f + {0.3 + 0.05 * i}f)" for i, x in enumerate(chains))
+    total = " + ".join(chains)
+
+    def loop(step):
+        return f"""    {v} {init};
+    const {v} b = ({v})0.999f, c = ({v})1e-3f;
+    for (int i = 0; i < iters; i++) {{
+        {" ".join(step(x) for x in chains)}
+    }}
+    {v} s = {total};
+    out[g] = {lanes};"""
+    src = f"""
 __kernel void stream(__global const {v} *a, __global float *out, const int n) {{
     const int g = get_global_id(0), ng = get_global_size(0);
-    {v} s = 0;
-    for (int i = g; i < n; i += ng) s += a[i];
+    const int per = (n + ng - 1) / ng, i0 = g * per, i1 = min(i0 + per, n);
+    {v} s0 = 0, s1 = 0, s2 = 0, s3 = 0;             /* 4 sums: no add-latency chain */
+    int i = i0;
+    for (; i + 3 < i1; i += 4) {{ s0 += a[i]; s1 += a[i + 1]; s2 += a[i + 2]; s3 += a[i + 3]; }}
+    for (; i < i1; i++) s0 += a[i];
+    {v} s = s0 + s1 + s2 + s3;
     out[g] = {lanes};
 }}
 __kernel void fma_peak(__global float *out, const int iters) {{
     const int g = get_global_id(0);
-    {v} a = ({v})(g * 1e-7f), b = ({v})0.999f, c = ({v})1e-3f, d = a + 1, e = a + 2, f = a + 3;
-    for (int i = 0; i < iters; i++) {{
-        a = fma(a, b, c); d = fma(d, b, c); e = fma(e, b, c); f = fma(f, b, c);
-    }}
-    {v} s = a + d + e + f;
-    out[g] = {lanes};
+{loop(lambda x: f"{x} = {x} * b + c;")}
 }}
 """
+    arg = {"exp": "-{x}", "log": "{x} + 1.0f", "log1p": "{x}", "sqrt": "{x} + 0.5f", "erfc": "{x}",
+           "pow": "{x} + 0.5f, b"}
+    for fn in TRANSCENDENTALS:
+        src += f"""__kernel void cost_{fn}(__global float *out, const int iters) {{
+    const int g = get_global_id(0);
+{loop(lambda x, fn=fn: f"{x} = {fn}({arg[fn].format(x=x)}) * b + c;")}
+}}
+"""
+    return src
 
 
 def roofline(eng, repeat):
+    """(bandwidth B/s, FMA peak flop/s, {builtin: cost in FMA-equivalents}) of the engine's device."""
     ctx, queue, dev = eng.ctx, eng.queue, eng.device
     vw = eng.opt.vw
     prg = cl.Program(ctx, roof_source(vw)).build()
@@ -95,17 +127,17 @@ def roofline(eng, repeat):
     nw = dev.max_compute_units * 64
     out = cl.Buffer(ctx, cl.mem_flags.WRITE_ONLY, nw * 4)
 
-    k_stream, k_peak = cl.Kernel(prg, "stream"), cl.Kernel(prg, "fma_peak")
+    def timed(name, *args):
+        k = cl.Kernel(prg, name)
+        return median_time(lambda: k(queue, (nw,), None, *args).wait(), repeat)
 
-    def stream():
-        k_stream(queue, (nw,), None, a, out, np.int32(nv)).wait()
-    bw = nv * 4 * vw / median_time(stream, repeat)
-    iters = 20000 * 16 // vw
-
-    def peak():
-        k_peak(queue, (nw,), None, out, np.int32(iters)).wait()
-    flops = nw * iters * 4 * vw * 2 / median_time(peak, repeat)
-    return bw, flops
+    bw = nv * 4 * vw / timed("stream", a, out, np.int32(nv))
+    iters = 4000 * 16 // vw
+    t_fma = timed("fma_peak", out, np.int32(iters))
+    flops = nw * iters * 8 * vw * 2 / t_fma
+    cost = {fn: max(timed(f"cost_{fn}", out, np.int32(iters // 8)) * 8 / t_fma - 1.0, 0.0)
+            for fn in TRANSCENDENTALS}
+    return bw, flops, cost
 
 
 def pocl_devices():
@@ -165,11 +197,11 @@ def compare_lines(configs, n_mat, repeat):
 
 
 _OPS = re.compile(r"(?<![eE])[-+*/](?!=)|\b(?:fmin|fmax)\b")
-_TRANS = re.compile(r"\b(?:exp|log|log1p|sqrt|cbrt|erfc|pow)\s*\(")
+_TRANS = re.compile(r"\b(exp|log|log1p|sqrt|cbrt|erfc|pow)\s*\(")
 
 
 def op_count(source, kernel="grad"):
-    """(arithmetic ops, transcendental calls) per cell in a kernel's loop, from the generated source.
+    """(arithmetic ops, {builtin: calls}) per cell in a kernel's loop, from the generated source.
 
     Inline functions are expanded once per call site.  An estimate: compilers fold some
     operations and the transcendentals cost many instructions each."""
@@ -181,16 +213,47 @@ def op_count(source, kernel="grad"):
     def count(text, depth=0):
         text = re.sub(r"\[[^\]]*\]|\(size_t\)|\d+\.?\d*e[-+]\d+", "", text)
         ops = len(_OPS.findall(text))
-        tr = len(_TRANS.findall(text))
+        tr: dict = {}
+        for fn in _TRANS.findall(text):
+            tr[fn] = tr.get(fn, 0) + 1
         if depth < 3:
             for name, fbody in funcs.items():
                 calls = len(re.findall(rf"\b{name}\s*\(", text))
                 if calls:
-                    o, t = count(fbody, depth + 1)
+                    o, inner = count(fbody, depth + 1)
                     ops += calls * o
-                    tr += calls * t
+                    for fn, k in inner.items():
+                        tr[fn] = tr.get(fn, 0) + calls * k
         return ops, tr
     return count(body)
+
+
+def scattered_throughput(args, merl_rate, n_mat):
+    """Loss + gradient on the real Cornell spectral measurement (31 bands, scattered samples, one
+    geometry per material) next to the MERL tables, per sample-channel: n_mat copies of it in one
+    launch, the model with one wavelength per band.  None when the measurement is absent."""
+    from brdfcl.data.readers import read_samples
+    from brdfcl.model.compose import Model
+    from brdfcl.model.lobes.cells import Cells
+    path = SHARED / "data" / "cornell" / "krylon_blue.brdf"
+    if not path.exists():
+        return None
+    s = read_samples(path)
+    ok = s.mask(80.0)
+    cells = Cells.from_directions(s.wi[ok], s.wo[ok])
+    model = Model(args.model, lambdas=tuple(s.wavelengths))
+    eng = Engine(model, device=args.device, real="float", metric=args.metric)
+    w, v = s.weights_within(80.0)[ok], s.values[ok].T
+    cs = eng.upload_samples([f"{s.name}{i}" for i in range(n_mat)], [cells] * n_mat, [w] * n_mat, [v] * n_mat)
+    V = np.tile(model.defaults(), (n_mat, 1))
+    mats = np.arange(n_mat)
+    eng.grad(cs, V, mats)
+    sec = median_time(lambda: eng.grad(cs, V, mats), args.repeat)
+    rate = n_mat * int(ok.sum()) * model.n_channels / sec
+    return [f"Scattered spectral samples ({path.name}: {int(ok.sum())} samples x {model.n_channels} bands, "
+            f"{model.n_free} free parameters, {n_mat} copies in one launch, float32): "
+            f"{rate:.3g} material-sample-channels/s, {rate / merl_rate:.2f}x the MERL tables' "
+            f"{merl_rate:.3g} material-cell-channels/s above (3 channels, {n_mat} materials)."]
 
 
 def main(argv=None):
@@ -247,13 +310,14 @@ def main(argv=None):
         tn = median_time(run, max(1, args.repeat // 2))
         rows.append((f"{name} (one material at a time)", k, tn, k * n_cells / tn))
 
-    bw, peak = roofline(eng32, args.repeat)
+    bw, peak, cost = roofline(eng32, args.repeat)
     ops, trans = op_count(eng32.source)
     rate32 = rows[0][3]
     bytes_per = 9 * 4                                     # 6 geometry + 3 data floats per cell-eval
-    ai = (ops + trans) / bytes_per
-    attainable = min(peak, ai * bw)
-    achieved = rate32 * (ops + trans)
+    weighted = ops + sum(k * (1 + cost.get(fn, 0.0)) for fn, k in trans.items())   # FMA-equivalents
+    ai = weighted / bytes_per
+    attainable = min(peak / 2, ai * bw)                   # an op is half an FMA's two flops
+    achieved = rate32 * weighted
 
     ref = rows[2][3]
     lines = [f"# bench_eval: loss + gradient throughput ({datetime.date.today()})", "",
@@ -267,15 +331,22 @@ def main(argv=None):
     for name, nm, tt, rate in rows:
         lines.append(f"| {name} | {nm} | {tt:.3f} | {rate:.3g} | {rate / ref:.1f}x |")
     lines += ["", "Roofline of the float32 kernel, measured in the same run:", "",
-              f"* streaming read bandwidth {bw / 1e9:.1f} GB/s; FMA peak {peak / 1e9:.1f} GFLOP/s",
-              f"* per cell-evaluation: {ops} arithmetic ops + {trans} transcendental calls "
-              f"(counted in the generated source, an estimate), {bytes_per} bytes read "
-              f"(arithmetic intensity {ai:.1f} op/byte)",
+              f"* streaming read bandwidth {bw / 1e9:.1f} GB/s (one contiguous block per work-item); "
+              f"FMA peak {peak / 1e9:.1f} GFLOP/s (8 independent chains of a * b + c)",
+              "* cost of each builtin, measured the same way, in FMA-equivalents beyond the FMA: "
+              + ", ".join(f"{fn} {c:.1f}" for fn, c in cost.items()),
+              f"* per cell-evaluation: {ops} arithmetic ops and "
+              + ", ".join(f"{k} {fn}" for fn, k in sorted(trans.items()))
+              + f" (counted in the generated source, an estimate): {weighted:.0f} FMA-equivalents; "
+              f"{bytes_per} bytes read (arithmetic intensity {ai:.1f} op/byte)",
               f"* achieved {achieved / 1e9:.1f} Gop/s and {rate32 * bytes_per / 1e9:.1f} GB/s; "
               f"attainable at this intensity {attainable / 1e9:.1f} Gop/s: "
               f"{100 * achieved / attainable:.0f}% of the roofline "
-              f"({'compute' if ai * bw > peak else 'memory'} bound)", "",
+              f"({'compute' if ai * bw > peak / 2 else 'memory'} bound)", "",
               f"Database load (read 80 files, upload float32 cells): {notes['load_s']:.1f} s."]
+    scattered = scattered_throughput(args, rows[0][3] * 3, n_mat)
+    if scattered:
+        lines += [""] + scattered
     cmp_rows = []
     if args.compare_materials:
         cmp_rows, n_cmp = compare(args, paths, min(args.compare_materials, n_mat))
@@ -287,7 +358,8 @@ def main(argv=None):
     (out / "bench_eval.md").write_text(text + "\n")
     (out / "bench_eval.json").write_text(json.dumps({
         "rows": [dict(zip(("name", "materials", "seconds", "rate"), r)) for r in rows],
-        "bandwidth": bw, "peak": peak, "ops": ops, "transcendentals": trans, "vector_width": eng32.opt.vw,
+        "bandwidth": bw, "peak": peak, "builtin_cost": cost, "ops": ops, "transcendentals": trans,
+        "fma_equivalents": weighted, "vector_width": eng32.opt.vw,
         "compare": cmp_rows}, indent=1))
     return 0
 
