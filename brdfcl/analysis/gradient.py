@@ -29,6 +29,7 @@ Choices, all on the data:
 """
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -94,7 +95,9 @@ def ridge_log_slope(p, floor, td):
     lobe's log slope in theta_d is this at every theta_h (its D depends on theta_h only, and at
     phi_d = 90 deg its 1/(cos ti cos to) = 1/(cos th cos td)^2 separates), so it carries the
     Fresnel factor and the 1/cos^2 td of CT without knowing either (Smith G ~1 below the cut-off)."""
-    ridge = np.nanmean(p[:RIDGE_BINS], axis=0) - floor
+    with warnings.catch_warnings():         # a theta_d column with no ridge cell: NaN, masked below
+        warnings.simplefilter("ignore", RuntimeWarning)
+        ridge = np.nanmean(p[:RIDGE_BINS], axis=0) - floor
     ok = np.isfinite(ridge) & (ridge > floor)
     if ok.sum() < 10:
         return 2.0 * np.tan(td)

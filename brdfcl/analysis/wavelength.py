@@ -12,6 +12,12 @@ Where the curves are power laws the check cannot decide: a power law is scale fr
 so the 1/lambda shift in log f equals an amplitude change, which the per-channel
 scaling removes (MERL-proxy metals sit there, ratio ~ 1).  The check therefore only
 contradicts diffraction when it is decisive, ``ratio >= DECISIVE``.
+
+``DECISIVE`` labels the check's own answer (``consistent``).  The verdict vetoes only at
+brdfcl.analysis.analyze.WAVELENGTH_VETO (5, calibrated): on synthetic halos with MERL-like noise
+the ratio lies between 1.5 and 5 for a quarter of the materials whose halo carries half of the
+wide-angle energy (bench/results/calibration/calibration.md); with the verdict's other thresholds
+as calibrated, a veto at 1.5 removed 13 of its 65 detections there and no false positive.
 """
 from __future__ import annotations
 

@@ -163,6 +163,7 @@ def cmd_params(args):
 
 
 def build_parser():
+    from brdfcl.app import calibrate
     from brdfcl.app.analyze import analyze
     from brdfcl.app.run import fit_all
     from brdfcl.model.synth import write_synth
@@ -208,6 +209,8 @@ def build_parser():
     p.add_argument("--workers", type=int, default=0, help="fit on a local Dask cluster of N workers")
     p.add_argument("--scheduler", default=None, help="fit on the Dask cluster at this address")
     p.set_defaults(func=cmd_fit_all)
+
+    calibrate.add_parser(sub)
 
     p = sub.add_parser("analyze", help="gradient test, wavelength check and lobe selection per material")
     add_database_arguments(p, "analyse", "output folder", analyze)
