@@ -57,3 +57,11 @@ def test_spectral_fits_are_not_exported_as_merl(mixed, tmp_path):
                        capture_output=True, text=True)
     assert (out / "synth-fabric.binary").exists() and not (out / "krylon_blue.binary").exists()
     assert "krylon_blue: no merl export: it is a fit of 31 spectral channels" in r.stderr
+
+
+def test_analyze_says_samples_are_not_analysed_yet(mixed, tmp_path):
+    r = subprocess.run([*CLI, "analyze", str(mixed), "--out", str(tmp_path / "a"), "--quiet", "--no-figures",
+                        "--no-report"], capture_output=True, text=True)
+    assert "analysed 1 materials" in r.stdout, r.stderr
+    assert (f"skipped: {mixed / 'krylon_blue.brdf'}: scattered samples are not analysed yet "
+            "(brdfcl analyze reads MERL tables); brdfcl fit-all fits them") in r.stderr

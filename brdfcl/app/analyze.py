@@ -17,6 +17,7 @@ from typing import Any
 from brdfcl.analysis.analyze import MaterialAnalysis, analyze_material, lobe_images
 from brdfcl.analysis.gradient import phi90_slice
 from brdfcl.app.runner import Runner
+from brdfcl.data.inputs import is_table
 from brdfcl.data.merl import MerlError, read_merl
 from brdfcl.model.compose import Model
 from brdfcl.optim.fit import FitOptions, Fitter
@@ -64,7 +65,12 @@ def analyze(source: Any, out: str | os.PathLike | None = None, options: FitOptio
         fitters["full_free"] = Fitter(replace(base.opts, ct_peak=False), engine=base.engine)
         specs["full_free"] = specs["full_local"] = specs["full"]
 
-    for part in run.batches(run.paths, batch):
+    tables = [p for p in run.paths if is_table(p)]
+    for p in run.paths:
+        if not is_table(p):         # issue 14: the analysis of scattered samples is not built yet
+            run.skip(p, f"{p}: scattered samples are not analysed yet (brdfcl analyze reads MERL tables); "
+                        f"brdfcl fit-all fits them")
+    for part in run.batches(tables, batch):
         loaded = run.load(part, base)
         if loaded is None:
             continue
