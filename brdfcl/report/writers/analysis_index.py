@@ -64,7 +64,7 @@ def write_index(out: str | os.PathLike, analyses: list[Any]) -> None:
     h += [f"<th title='{c}'>{html.escape(HEADS.get(c, c))}</th>" for c in COLUMNS] + ["</tr>"]
     for a, r in zip(analyses, rows):
         cells = [f"<a href='#{html.escape(a.name)}'>{html.escape(a.name)}</a>"]
-        cells += [html.escape(str(r[c])).replace("+", "+<wbr>") for c in COLUMNS[1:]]
+        cells += [html.escape(str(r.get(c, ""))).replace("+", "+<wbr>") for c in COLUMNS[1:]]
         h.append(f"<tr class='{r['verdict']}'>" + "".join(f"<td>{c}</td>" for c in cells) + "</tr>")
     h.append("</table>")
     for a, r in zip(analyses, rows):
