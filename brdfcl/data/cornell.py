@@ -19,7 +19,7 @@ import os
 
 import numpy as np
 
-from .errors import DataError, parse_numbers, read_text
+from .errors import DataError, parse_numbers, parse_rows, read_text
 from .samples import Channel, Samples, make_samples
 
 SUFFIX = ".brdf"
@@ -66,15 +66,9 @@ def read_cornell(path: str | os.PathLike[str]) -> Samples:
     channels = _channels(path, wls, wl_lines)
 
     width = 4 + count
-    rows, where = [], []
-    for k, fields in pending[body:]:
-        if len(fields) != width:
-            raise DataError(path, f"{len(fields)} numbers, expected {width} (4 angles + {count} values)", k)
-        rows.append(parse_numbers(path, k, fields))
-        where.append(k)
-    if not rows:
-        raise DataError(path, "no samples after the wavelength list")
-    a = np.array(rows, dtype=np.float64)
+    a, where = parse_rows(path, pending[body:], width,
+                          lambda n: f"{n} numbers, expected {width} (4 angles + {count} values)",
+                          "no samples after the wavelength list")
     return make_samples(path, a[:, 0], a[:, 1], a[:, 2], a[:, 3], a[:, 4:], channels, lines=where)
 
 

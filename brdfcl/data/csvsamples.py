@@ -25,7 +25,7 @@ import re
 
 import numpy as np
 
-from .errors import DataError, parse_numbers, read_text
+from .errors import DataError, parse_rows, read_text
 from .samples import RGB_WAVELENGTHS_UM, Channel, Samples, make_samples
 
 SUFFIX = ".csv"
@@ -51,15 +51,9 @@ def read_csv(path: str | os.PathLike[str]) -> Samples:
     if len({c.name for c in channels}) != len(channels):
         raise DataError(path, "repeated channel column", k0)
 
-    data, where = [], []
-    for (k, _), fields in zip(numbered[1:], rows[1:]):
-        if len(fields) != len(header):
-            raise DataError(path, f"{len(fields)} columns, expected {len(header)} as in the header", k)
-        data.append(parse_numbers(path, k, fields))
-        where.append(k)
-    if not data:
-        raise DataError(path, "no samples after the header")
-    a = np.array(data, dtype=np.float64)
+    a, where = parse_rows(path, [(k, f) for (k, _), f in zip(numbered[1:], rows[1:])], len(header),
+                          lambda n: f"{n} columns, expected {len(header)} as in the header",
+                          "no samples after the header")
     ti, pi_, to, po = (a[:, j] * to_rad[j] for j in range(4))
     return make_samples(path, ti, pi_, to, po, a[:, 4:], channels, lines=where)
 

@@ -10,6 +10,8 @@ import math
 import os
 from pathlib import Path
 
+import numpy as np
+
 
 class DataError(ValueError):
     """A measurement file that cannot be used; the message is one line: file, line, problem."""
@@ -65,3 +67,18 @@ def parse_numbers(path: str | os.PathLike[str], line: int, fields: list[str]) ->
 def _quote(text: str, limit: int = 20) -> str:
     text = text.strip()
     return repr(text if len(text) <= limit else text[:limit] + "...")
+
+
+def parse_rows(path, rows, width: int, wrong_width, none_left: str):
+    """(values (n, width) float64, line numbers) of numbered rows of fields ``[(line, fields)]``;
+    a row of another width is ``DataError(path, wrong_width(n_fields), line)``, no row at all
+    ``DataError(path, none_left)``."""
+    values, lines = [], []
+    for k, fields in rows:
+        if len(fields) != width:
+            raise DataError(path, wrong_width(len(fields)), k)
+        values.append(parse_numbers(path, k, fields))
+        lines.append(k)
+    if not values:
+        raise DataError(path, none_left)
+    return np.array(values, dtype=np.float64), lines
