@@ -1,7 +1,10 @@
 """brdfcl: fit diffuse + diffraction + Cook-Torrance to measured BRDF databases with OpenCL."""
+from brdfcl._lazy import submodule_getattr
 from brdfcl._version import __version__  # noqa: E402
 from brdfcl.data.merl import MerlError, MerlTable, read_database, read_merl, write_merl  # noqa: E402
 from brdfcl.model.compose import DEFAULT_MODEL, Model, ModelError  # noqa: E402
+
+_submodule = submodule_getattr(__name__)
 
 
 def __getattr__(name):
@@ -15,10 +18,7 @@ def __getattr__(name):
     if name == "Engine":
         from brdfcl.device.engine import Engine
         return Engine
-    import importlib.util
-    if not name.startswith("_") and importlib.util.find_spec(f"{__name__}.{name}") is not None:
-        return importlib.import_module(f"{__name__}.{name}")    # submodules: brdfcl.app.cluster.make_client
-    raise AttributeError(f"module 'brdfcl' has no attribute '{name}'")
+    return _submodule(name)                                   # brdfcl.app.cluster.make_client
 
 
 __all__ = ["DEFAULT_MODEL", "Engine", "FitOptions", "FitResult", "Fitter", "MerlError", "MerlTable",

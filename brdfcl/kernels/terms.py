@@ -77,12 +77,7 @@ class _Printer(C99CodePrinter):
         return f"pow({self._print(b)}, {self._print(x)})"
 
     def _minmax(self, name, args):
-        if any(self.vec(a) for a in args):
-            args = sorted(args, key=lambda a: not self.vec(a))   # fmin(gentype, sgentype) only
-            out = self._print(args[0])
-            for a in args[1:]:
-                out = f"{name}({out}, {self._print(a)})"
-            return out
+        args = sorted(args, key=lambda a: not self.vec(a))       # vectors first: fmin(gentype, sgentype)
         out = self._print(args[0])
         for a in args[1:]:
             out = f"{name}({out}, {self._print(a)})"
