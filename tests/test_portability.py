@@ -173,18 +173,35 @@ def _scramble_middle(d):
 
 
 @pytest.mark.parametrize("device", POCL)
-def test_a_crash_on_a_cache_entry_breaks_one_run_at_most(tmp_path, device):
+def test_damage_inside_a_cache_file_is_seen_by_its_fingerprint(tmp_path, device):
     run = _runner(tmp_path, device)
     first = run()
     assert first.returncode == 0, first.stderr[-2000:]
     _scramble_middle(tmp_path / "pocl")
-    crashed = run()                         # may die inside PoCL (an assertion) or build anyway
-    again = run()
+    again = run()                       # without the fingerprint, LLVM aborts on this entry
     assert again.returncode == 0, again.stderr[-2000:]
     assert again.stdout == first.stdout
-    if crashed.returncode != 0:
-        assert "a run died building or testing this program" in again.stderr
-    assert run().stderr.count("brdfcl:") == 0                 # the new key is kept
+    assert again.stderr.count("removed a broken PoCL kernel-cache entr") == 1
+    assert run().stderr.count("brdfcl:") == 0
+
+
+def test_a_run_that_died_building_moves_the_program_to_a_new_cache_key(tmp_path, monkeypatch):
+    """PoCL can abort the whole process while building; the next run sees the dead run's marker."""
+    from brdfcl.device import program
+    monkeypatch.setenv("BRDFCL_CACHE_DIR", str(tmp_path))
+    dev = type("Dev", (), {"name": "cpu", "driver_version": "1"})()
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True)
+    with program.crash_guard("src", dev) as attempt:
+        assert attempt == 0
+        marker = next((tmp_path / "building").iterdir())
+        marker.rename(marker.with_suffix("." + dead.stdout.strip()))     # as if that run had died here
+    lines = []
+    with program.crash_guard("src", dev, log=lines.append) as attempt:
+        assert attempt == 1
+    assert len(lines) == 1 and "a run died building or testing this program on cpu" in lines[0]
+    with program.crash_guard("src", dev, log=lines.append) as attempt:
+        assert attempt == 1                                           # kept for good
+    assert len(lines) == 1
 
 
 @pytest.mark.skipif(len(POCL) < 2,

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import hashlib
 import logging
+import time
 
 import numpy as np
 import pyopencl as cl
@@ -18,7 +19,15 @@ from brdfcl.data.geometry import DEFAULT_CUTOFF_DEG, table_geometry
 from brdfcl.device import selftest, width
 from brdfcl.device.cellsets import CellSet, build_cellset, build_sample_cellset, extract, select_cells
 from brdfcl.device.platforms import has_fp64, pick_device
-from brdfcl.device.program import KERNELS, ProgramError, build, crash_guard, keep_attempt, repair_pocl_cache
+from brdfcl.device.program import (
+    KERNELS,
+    ProgramError,
+    build,
+    crash_guard,
+    keep_attempt,
+    remember_pocl_cache,
+    repair_pocl_cache,
+)
 from brdfcl.device.width import is_cpu
 from brdfcl.kernels.codegen import KernelOptions, jtj_pairs, n_outputs, render
 from brdfcl.model.compose import Model
@@ -85,6 +94,7 @@ class Engine:
         if key in _PROGRAMS and (_PROGRAMS[key][1] is not None or not verify):
             return _PROGRAMS[key]
         repair_pocl_cache(self.platform, log=_log.warning)
+        started = time.time_ns() - 2_000_000_000     # file times may lag the clock
         failures = []
         with crash_guard(self.source, self.device, log=_log.warning) as first:
             for attempt in (first, first + 1):
@@ -95,6 +105,8 @@ class Engine:
                     continue
                 result = selftest.check(self) if verify else None
                 if result is None or result.ok:
+                    if result is not None:
+                        remember_pocl_cache(self.platform, started)
                     if failures:
                         keep_attempt(self.source, self.device, attempt)
                         _log.warning(f"brdfcl: rebuilt the {self.model.spec} program on {self.device.name}: "

@@ -4,10 +4,13 @@ PoCL keeps compiled programs in a cache (``POCL_CACHE_DIR``, default
 ``~/.cache/pocl``).  A process that crashed while compiling can leave entries
 behind that make every later run fail: a truncated ``program.bc`` (the kernels
 are then missing: ``INVALID_KERNEL_NAME``) or a truncated kernel library
-(PoCL aborts the whole process when it cannot load it).  So, before the first
-build of a process, broken kernel libraries are removed from PoCL's cache (they
-are recompiled on demand), and a program whose kernels are missing, or that
-fails the caller's check, is built again under a different cache key.
+(PoCL aborts the whole process when it cannot load it), or a file damaged in
+place, which only its content shows (LLVM then aborts: "Invalid abbrev number").
+So, before the first build of a process, cache entries with an incomplete file,
+or with a file that differs from the fingerprint brdfcl took when that entry
+last worked, are removed from PoCL's cache (they are recompiled on demand), and
+a program whose kernels are missing, or that fails the caller's check, is built
+again under a different cache key.
 """
 from __future__ import annotations
 
@@ -201,22 +204,79 @@ def update_json(path: Path, key: str, value) -> None:
     """Set one key of a JSON object in brdfcl's cache, replacing the file atomically."""
     d = read_json(path)
     d[key] = value
+    write_json(path, d)
+
+
+def write_json(path: Path, d: dict) -> None:
+    """Replace a JSON file of brdfcl's cache atomically."""
+    path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
     tmp.write_text(json.dumps(d, indent=1, sort_keys=True))
     os.replace(tmp, path)
 
 
+def _cache_files(root: Path) -> list:
+    """(file, its entry folder) for the program bitcode and kernel libraries of a PoCL cache."""
+    return [(p, p.parent) for p in root.glob("*/*/*.bc")] + [(p, p.parents[2]) for p in root.glob("*/*/*/*/*.so")]
+
+
+def _fingerprints_file() -> Path:
+    return cache_dir() / "pocl-fingerprints.json"
+
+
+def _digest(path: Path) -> str:
+    return hashlib.sha1(path.read_bytes()).hexdigest()
+
+
+def _matches(path: Path, print_) -> bool:
+    """True when a file is the one fingerprinted: same size and time, or else the same content."""
+    try:
+        st = path.stat()
+        size, mtime, digest = print_
+        return st.st_size == size and (st.st_mtime_ns == mtime or _digest(path) == digest)
+    except (OSError, ValueError, TypeError):
+        return False
+
+
+def remember_pocl_cache(platform, since_ns: int) -> None:
+    """Fingerprint the cache files PoCL wrote since ``since_ns`` (call it once their program has
+    passed its self-test): a later run removes an entry whose file no longer matches."""
+    root = pocl_cache_dir(platform)
+    if root is None or not root.is_dir():
+        return
+    new = {}
+    for path, _ in _cache_files(root):
+        try:
+            st = path.stat()
+            if st.st_mtime_ns >= since_ns:
+                new[str(path)] = [st.st_size, st.st_mtime_ns, _digest(path)]
+        except OSError:
+            continue
+    if not new:
+        return
+    try:
+        prints = read_json(_fingerprints_file())
+        prints.update(new)
+        prints = {k: v for k, v in prints.items() if os.path.exists(k)}
+        write_json(_fingerprints_file(), prints)
+    except OSError:
+        pass
+
+
 def repair_pocl_cache(platform, log=None) -> list:
-    """Remove cache entries whose program bitcode or kernel libraries are incomplete (PoCL
-    rebuilds them); once per process and cache.  Returns the removed entry folders."""
+    """Remove cache entries with an incomplete file, or with a file that no longer matches its
+    fingerprint (PoCL rebuilds them); once per process and cache.  Returns the removed entry folders."""
     root = pocl_cache_dir(platform)
     if root is None or root in _REPAIRED or not root.is_dir():
         return []
     _REPAIRED.add(root)
+    prints = read_json(_fingerprints_file())
     removed = []
-    files = [(p, p.parent) for p in root.glob("*/*/*.bc")] + [(p, p.parents[2]) for p in root.glob("*/*/*/*/*.so")]
-    for path, entry in files:
-        if entry in removed or _sound(path):
+    for path, entry in _cache_files(root):
+        if entry in removed:
+            continue
+        known = prints.get(str(path))
+        if _sound(path) and (known is None or _matches(path, known)):
             continue
         shutil.rmtree(entry, ignore_errors=True)
         removed.append(entry)
