@@ -1,6 +1,7 @@
 """brdfcl fit-all on a folder mixing MERL tables, Cornell spectral samples and a bad CSV, as a
 user runs it: every readable file fitted, the bad one skipped in one line, resumable, and
 --rgb fitting the spectra as linear sRGB."""
+import csv
 import json
 import shutil
 import subprocess
@@ -59,9 +60,15 @@ def test_spectral_fits_are_not_exported_as_merl(mixed, tmp_path):
     assert "krylon_blue: no merl export: it is a fit of 31 spectral channels" in r.stderr
 
 
-def test_analyze_says_samples_are_not_analysed_yet(mixed, tmp_path):
-    r = subprocess.run([*CLI, "analyze", str(mixed), "--out", str(tmp_path / "a"), "--quiet", "--no-figures",
+def test_analyze_takes_the_same_mixed_folder(mixed, tmp_path):
+    out = tmp_path / "a"
+    r = subprocess.run([*CLI, "analyze", str(mixed), "--out", str(out), "--quiet", "--no-figures",
                         "--no-report"], capture_output=True, text=True)
-    assert "analysed 1 materials" in r.stdout, r.stderr
-    assert (f"skipped: {mixed / 'krylon_blue.brdf'}: scattered samples are not analysed yet "
-            "(brdfcl analyze reads MERL tables); brdfcl fit-all fits them") in r.stderr
+    assert "analysed 2 materials" in r.stdout, r.stderr
+    assert f"skipped: {mixed / 'bad.csv'}:2: 5 columns, expected 6 as in the header" in r.stderr
+    rows = {row["material"]: row for row in csv.DictReader((out / "analysis.csv").open())}
+    assert set(rows) == {"krylon_blue", "synth-fabric"}
+    k, m = rows["krylon_blue"], rows["synth-fabric"]
+    assert k["gradient_test"].startswith("not run") and k["grad_cells"] == "" and float(k["wavelength_ratio"]) > 0
+    assert m["gradient_test"] == "" and m["grad_cells"] != ""
+    assert (out / "synth-fabric.exr").exists() and not (out / "krylon_blue.exr").exists()

@@ -57,9 +57,10 @@ class Rule:
     diffraction lobe by more than ``lobe_gain`` (ln of the penalised error without diffraction over
     the best with it; 0: brdfcl.optim.selection's choice), and neither the gradient test (where at
     least ``min_cells`` cells decide, score >= ``gradient_score``; with ``gradient_required`` it must
-    decide) nor the wavelength check (ratio < ``wavelength_decisive``) contradicts it where it can
-    decide.  The defaults are the calibrated rule; the legacy one was ``Rule(0.5, 30, 1.5, 0.0,
-    False)``.
+    decide) nor the wavelength check (ratio < ``wavelength_decisive``; with ``wavelength_required``
+    it must decide) contradicts it where it can decide.  The defaults are the calibrated rule; the
+    legacy one was ``Rule(0.5, 30, 1.5, 0.0, False)``; scattered samples are judged by
+    brdfcl.analysis.samples.SAMPLE_RULE.
 
     ``margins`` gives each test's signed distance to its threshold, positive on the side of
     diffraction: gradient ``score - gradient_score`` (NaN where too few cells decide), wavelength
@@ -71,6 +72,7 @@ class Rule:
     wavelength_decisive: float = WAVELENGTH_VETO
     lobe_gain: float = LOBE_GAIN
     gradient_required: bool = GRADIENT_REQUIRED   # an undecided gradient test (too few cells) says none
+    wavelength_required: bool = False             # an undecided wavelength check says none
 
     def margins(self, grad_score, grad_cells, wl_ratio, lobe_gain) -> dict:
         with np.errstate(invalid="ignore", divide="ignore"):
@@ -86,6 +88,8 @@ class Rule:
             return "none"
         if self.gradient_required and not np.isfinite(margins["gradient"]):
             return "none"
+        if self.wavelength_required and not np.isfinite(margins["wavelength"]):
+            return "none"
         return "diffraction"
 
     def binding(self, margins: dict) -> str:
@@ -96,8 +100,9 @@ class Rule:
             decided = {k: v for k, v in margins.items() if np.isfinite(v)}
             return min(decided, key=lambda k: decided[k])
         undecided = self.gradient_required and not np.isfinite(margins["gradient"])
-        against = {"gradient": margins["gradient"] < 0 or undecided, "wavelength": margins["wavelength"] <= 0,
-                   "lobe": not margins["lobe"] > 0}
+        no_wavelength = self.wavelength_required and not np.isfinite(margins["wavelength"])
+        against = {"gradient": margins["gradient"] < 0 or undecided,
+                   "wavelength": margins["wavelength"] <= 0 or no_wavelength, "lobe": not margins["lobe"] > 0}
         return "+".join(k for k in TESTS if against[k])
 
 
@@ -185,9 +190,10 @@ def lobe_images(spec, params):
     return out
 
 
-def peak_share(spec, params):
-    """Share of the fitted value at the specular peak (brdfcl.optim.peak_order.peak_cell) due to diffraction."""
-    model = Model(spec)
+def peak_share(spec, params, lambdas=None):
+    """Share of the fitted value at the specular peak (brdfcl.optim.peak_order.peak_cell) due to
+    diffraction, for a model of the given channel wavelengths (default R, G, B)."""
+    model = Model(spec) if lambdas is None else Model(spec, lambdas=tuple(lambdas))
     if not model.has_role("diffraction"):
         return 0.0
     cells = peak_cell()

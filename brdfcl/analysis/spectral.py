@@ -47,6 +47,7 @@ class SpectralCheck:
     points: tuple                # (f0 (n,), q (C, n)): wide-angle data minus diffuse and reflection
     edges: np.ndarray            # bin edges in f (1/um)
     curves: np.ndarray           # (C, N_BINS) scaled band curves against f_c
+    curves_f0: np.ndarray        # (C, N_BINS) ... against f0, on the bins edges * the middle band's lambda
 
     @property
     def ratio(self) -> float:
@@ -105,6 +106,6 @@ def spectral_check(samples, model, params, cutoff_deg: float = 80.0) -> Spectral
     curves = np.stack([_binned(fc[c][good], q[c][good], edges) for c in range(lam.size)])
     curves0 = np.stack([_binned(f0[good], q[c][good], edges * lam[lam.size // 2]) for c in range(lam.size)])
     scaled, spread = _collapse(curves)
-    _, spread0 = _collapse(curves0)
+    scaled0, spread0 = _collapse(curves0)
     n, se = lambda_exponent(model, params)
-    return SpectralCheck(lam, int(wide.sum()), spread, spread0, n, se, (f0, q), edges, scaled)
+    return SpectralCheck(lam, int(wide.sum()), spread, spread0, n, se, (f0, q), edges, scaled, scaled0)

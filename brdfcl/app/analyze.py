@@ -10,15 +10,19 @@ from __future__ import annotations
 
 import os
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import replace
 from typing import Any
 
-from brdfcl.analysis.analyze import MaterialAnalysis, analyze_material, lobe_images
+from brdfcl.analysis.analyze import COMPARED, MaterialAnalysis, analyze_material, lobe_images
 from brdfcl.analysis.gradient import phi90_slice
+from brdfcl.analysis.samples import GREY, SampleAnalysis, analyze_samples, grey_lambdas
 from brdfcl.app.runner import Runner
+from brdfcl.data.errors import DataError
 from brdfcl.data.inputs import is_table
 from brdfcl.data.merl import MerlError, read_merl
+from brdfcl.data.readers import read_samples
+from brdfcl.data.samples import Samples
 from brdfcl.model.compose import Model
 from brdfcl.optim.fit import FitOptions, Fitter
 from brdfcl.optim.selection import variants
@@ -66,10 +70,13 @@ def analyze(source: Any, out: str | os.PathLike | None = None, options: FitOptio
         specs["full_free"] = specs["full_local"] = specs["full"]
 
     tables = [p for p in run.paths if is_table(p)]
-    for p in run.paths:
-        if not is_table(p):         # issue 14: the analysis of scattered samples is not built yet
-            run.skip(p, f"{p}: scattered samples are not analysed yet (brdfcl analyze reads MERL tables); "
-                        f"brdfcl fit-all fits them")
+
+    def finished(a, path):
+        run.done(Item(a.name, path, analysis=a))
+        results.append(a)
+        if on_material:
+            on_material(a)
+
     for part in run.batches(tables, batch):
         loaded = run.load(part, base)
         if loaded is None:
@@ -93,15 +100,53 @@ def analyze(source: Any, out: str | os.PathLike | None = None, options: FitOptio
             a = analyze_material(name, brdf, {k: fits[k][name] for k in fits}, specs)
             if figures or out is not None:
                 a.slices = {"measured": phi90_slice(brdf)[0], **lobe_images(specs["full"], a.fits["full"].params)}
-            run.done(Item(name, path, analysis=a))
-            results.append(a)
-            if on_material:
-                on_material(a)
+            finished(a, path)
             run.log(f"{name}: {a.verdict} (lobes {a.specs[a.selected]}, gradient score "
                     f"{a.gradient.mean_score:.2f}, wavelength ratio {a.wavelength.ratio:.2f})")
+    for path, sa in _analyze_samples(run, [p for p in run.paths if not is_table(p)], opts, specs, ct_peak, batch):
+        finished(sa, path)
+        n = sa.spectral.exponent if sa.spectral else float("nan")
+        run.log(f"{sa.name}: {sa.verdict} (lobes {sa.specs[sa.selected]}, wavelength law ratio {sa.law_ratio:.2f} "
+                f"over {len(sa.lambdas)} bands, lambda exponent {n:.2f}; gradient test not run on scattered samples)")
     run.finish()
     if results.skipped and not results:
         where = source if isinstance(source, (str, os.PathLike)) else "the given files"
         n = len(results.skipped)
         raise MerlError(f"{where}: no readable material to analyse ({n} file{'s' * (n != 1)} skipped)")
     return results
+
+
+def _analyze_samples(run: Runner, paths: list[str], opts: FitOptions, specs: dict, ct_peak: bool,
+                     batch: int) -> Iterator[tuple[str, SampleAnalysis]]:
+    """(path, SampleAnalysis) of each readable samples file, fitted with every compared model in
+    groups of equal bands (brdfcl.analysis.samples); unreadable files are skipped with their reason."""
+    groups: dict[tuple, list[tuple[str, Samples]]] = {}
+    for p in paths:
+        try:
+            s = read_samples(p)
+        except (DataError, ValueError) as e:
+            run.skip(p, e)
+            continue
+        groups.setdefault(tuple(float(x) for x in s.wavelengths), []).append((p, s))
+    for lambdas, group in groups.items():
+        fitters = {k: Fitter(replace(opts, model=sp, fixed={}, ct_peak=ct_peak), lambdas=lambdas)
+                   for k, sp in specs.items() if k in COMPARED}
+        base = fitters["full"]
+        if ct_peak:
+            for key, o in (("full_local", replace(base.opts, ct_peak_global=False)),
+                           ("full_free", replace(base.opts, ct_peak=False))):
+                fitters[key] = Fitter(o, engine=base.engine, lambdas=lambdas)
+        fitters[GREY] = Fitter(base.opts, lambdas=grey_lambdas(lambdas))     # the wavelength law's rival
+        for part in run.batches(group, batch):
+            samples = [s for _, s in part]
+            fits = {}
+            for k, f in fitters.items():
+                t = time.perf_counter()
+                fits[k] = {r.name: r for r in f.fit_samples(samples)}
+                run.log(f"fitted {len(samples)} sample sets ({len(lambdas)} bands) with "
+                        f"{specs.get(k, specs['full'])} ({k}) in {time.perf_counter() - t:.1f} s")
+            if "full_local" in fits:
+                other = fits.pop("full_local")
+                fits["full"] = {n: (r if r.loss <= other[n].loss else other[n]) for n, r in fits["full"].items()}
+            for path, s in part:
+                yield path, analyze_samples(s, {k: fits[k][s.name] for k in fits}, specs, cutoff_deg=opts.cutoff_deg)

@@ -22,11 +22,11 @@ from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 from tqdm import tqdm
 
-from brdfcl.data.inputs import FileReader, check_output_dir, check_output_not_input, database_paths, is_table
+from brdfcl.data.inputs import FileReader, check_output_dir, check_output_not_input, database_paths
 from brdfcl.data.merl import material_name
 from brdfcl.device.engine import Engine
 from brdfcl.model.compose import Model
@@ -34,6 +34,8 @@ from brdfcl.optim.fit import FitOptions, Fitter, load_batch
 from brdfcl.report.files import remove_stale_temporaries
 from brdfcl.report.output import recorded_options
 from brdfcl.report.writers import Item, Job, Writer, writers_for
+
+T = TypeVar("T")
 
 
 def _quiet(message: str) -> None:
@@ -151,14 +153,14 @@ class Runner:
             check_output_not_input(source, out, self.paths)
             checked = check_output_dir(out)
             remove_stale_temporaries(checked)
-            tables = {material_name(p): p for p in self.paths if is_table(p)}
+            tables = {material_name(p): p for p in self.paths}     # tables and samples files
             self.job = Job(kind, checked, tables=tables, log=self.log, **job)
             self.writers = writers_for(self.job)
             for w in self.writers:
                 w.prepare(self.job)
 
     @staticmethod
-    def batches(paths: Sequence[str], size: int) -> Iterator[Sequence[str]]:
+    def batches(paths: Sequence[T], size: int) -> Iterator[Sequence[T]]:
         for s in range(0, len(paths), size):
             yield paths[s:s + size]
 

@@ -16,6 +16,7 @@ import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from brdfcl.data.inputs import is_table
 from brdfcl.model.compose import Model
 from brdfcl.report.files import writing
 from brdfcl.report.view.slices import write_slices
@@ -67,20 +68,28 @@ class Entry:
     uncertainty: dict | None = None
     albedo: dict | None = None
     flags: list = field(default_factory=list)
+    lambdas: tuple | None = None          # the channels' wavelengths (um); None: R, G, B
 
     @classmethod
     def from_document(cls, doc, table=None, **kw):
         """From a NAME.json document (brdfcl.report.output.result_document)."""
+        lambdas = doc.get("wavelengths_um")
         return cls(doc["material"], doc["model"], {k: v["value"] for k, v in doc["params"].items()},
                    doc["errors"], doc["status"], table, uncertainty=doc.get("uncertainty"),
-                   albedo=doc.get("albedo"), flags=list(doc.get("flags") or []), **kw)
+                   albedo=doc.get("albedo"), flags=list(doc.get("flags") or []),
+                   lambdas=tuple(lambdas) if lambdas else None, **kw)
 
     @classmethod
     def from_result(cls, res, table=None, **kw):
         """From a brdfcl.optim.fit.FitResult."""
+        lambdas = getattr(res, "lambdas", None)
         return cls(res.name, res.model, dict(res.params), res.errors, res.status, table,
                    uncertainty=getattr(res, "uncertainty", None), albedo=getattr(res, "albedo", None),
-                   flags=list(getattr(res, "flags", None) or []), **kw)
+                   flags=list(getattr(res, "flags", None) or []), lambdas=tuple(lambdas) if lambdas else None, **kw)
+
+    def fitted_model(self) -> Model:
+        """The fitted Model, at its channels' wavelengths."""
+        return Model(self.model) if self.lambdas is None else Model(self.model, lambdas=self.lambdas)
 
 
 def write_report(out, entries, read_table, title="brdfcl fits", log=None) -> Path:
@@ -107,12 +116,26 @@ def material_images(rep, e, read_table) -> dict:
     key = f"{e.model}|{sorted(e.params.items())}|{os.path.getmtime(e.table)}"
     if stamp == key:
         return _existing(d, e.name)
+    if not is_table(e.table):
+        return _sample_images(d, e, key)
     table = read_table(e.table)
     spheres = write_spheres(d, e.name, table, Model(e.model), e.params, lights=REPORT_LIGHTS, size=128,
                             env_size=64)
     slices = write_slices(d, e.name, table, Model(e.model), e.params)
     (d / ".stamp").write_text(key)
     return _classify(spheres + slices, e.name)
+
+
+def _sample_images(d, e, key) -> dict:
+    """Scattered samples: measured against fitted in the plane of incidence (no spheres or
+    slices: those need a table)."""
+    from brdfcl.data.readers import read_samples
+    from brdfcl.report.sample_figures import figure_in_plane
+    d.mkdir(parents=True, exist_ok=True)
+    path = d / f"{e.name}-in-plane-slices.png"
+    figure_in_plane(read_samples(e.table), e.fitted_model(), e.params, path)
+    (d / ".stamp").write_text(key)
+    return _classify([path], e.name)
 
 
 def _stamp(d):
@@ -139,7 +162,7 @@ def _groups(params):
     groups = {}
     for k in params:
         base, _, ch = k.rpartition("_")
-        key = base if ch in ("r", "g", "b") and base else k
+        key = base if base and (ch in ("r", "g", "b") or (ch.endswith("nm") and ch[0].isdigit())) else k
         groups.setdefault(key, []).append(k)
     return groups
 
@@ -167,9 +190,11 @@ def comparison_page(entries, title, rep) -> str:
         if analysed:
             cells.append(_td(html.escape(e.verdict or ""), e.verdict or "", "l"))
         cells += [_num(e.errors.get(m)) for m in metrics]
-        for ks in groups.values():
-            vals = [e.params[k] for k in ks if k in e.params]
-            cells.append(_td(" / ".join(f"{v:.3g}" for v in vals), sum(vals) / len(vals) if vals else ""))
+        for g in groups:
+            vals = [e.params[k] for k in _groups(e.params).get(g, [])]
+            text = " / ".join(f"{v:.3g}" for v in vals) if len(vals) <= 3 else \
+                f"{min(vals):.3g} .. {max(vals):.3g} ({len(vals)} bands)"
+            cells.append(_td(text, sum(vals) / len(vals) if vals else ""))
         short = e.status.split(" (")[0]
         status = f"<span title='{html.escape(e.status, quote=True)}'>{html.escape(short)}</span>"
         cells.append(_td(status, e.status, "l"))
@@ -191,9 +216,10 @@ def material_page(e, images, rep) -> str:
         h.append("<h2>Flags</h2><ul>" + "".join(f"<li class='flag'>{html.escape(f)}</li>" for f in e.flags) + "</ul>")
     h.append("<h2>Parameters</h2>" + _param_table(e))
     if e.albedo:
-        h.append("<h2>Directional albedo of the fit</h2>" + _albedo_table(e.albedo))
-    for key, head in (("spheres", "Lit spheres: measured | fitted | difference"),
-                      ("slices", "Slices: BRDF x cos against the outgoing angle, and the lobes")):
+        h.append("<h2>Directional albedo of the fit</h2>" + _albedo_table(e.albedo, e.fitted_model().channels))
+    slices = ("Slices: BRDF x cos against the outgoing angle, and the lobes" if e.table is None or is_table(e.table)
+              else "Measured samples and the fit in the plane of incidence")
+    for key, head in (("spheres", "Lit spheres: measured | fitted | difference"), ("slices", slices)):
         if images.get(key):
             h.append(f"<h2>{head}</h2><div class='figs'>")
             h += [f"<img class='{key[:-1]}' src='{_q(os.path.relpath(p, rep))}' alt='{html.escape(p.name)}'>"
@@ -212,7 +238,7 @@ def material_page(e, images, rep) -> str:
 
 def _param_table(e):
     se = (e.uncertainty or {}).get("std_error") or {}
-    model = Model(e.model)
+    model = e.fitted_model()
     rows = ["<table><tr><th class='l'>parameter</th><th>value</th><th>standard error</th>"
             "<th class='l'>unit</th><th>bounds</th></tr>"]
     for s in model.slots:
@@ -228,10 +254,10 @@ def _param_table(e):
     return "".join(rows)
 
 
-def _albedo_table(albedo):
+def _albedo_table(albedo, channels=("r", "g", "b")):
     angles, vals = albedo.get("theta_i_deg", []), albedo.get("channels", [])
     rows = ["<table><tr><th class='l'>theta_i (deg)</th>" + "".join(f"<th>{a:g}</th>" for a in angles) + "</tr>"]
-    for c, name in enumerate("RGB"):
+    for c, name in enumerate(n.upper() if len(n) == 1 else n for n in channels):
         rows.append(f"<tr><td class='l'>{name}</td>" + "".join(
             f"<td class='{'flag' if v[c] > 1 else ''}'>{v[c]:.3f}</td>" for v in vals) + "</tr>")
     return "".join(rows) + "</table>"

@@ -15,17 +15,18 @@ from pathlib import Path
 from typing import Any
 
 from brdfcl.report.files import atomic_write_text, writing
-from brdfcl.report.writers.analysis_figures import FIGURES, figure_paths
+from brdfcl.report.writers.analysis_figures import figure_paths, of_samples
 from brdfcl.report.writers.base import ANALYSIS, Item, Job, Writer
 
 COLUMNS = ["material", "verdict", "verdict_by", "margin_gradient", "margin_wavelength", "margin_lobe",
            "selected_lobes", "grad_score_g", "grad_cells", "grad_band_deg_g",
-           "wavelength_ratio", "rmse_log_full", "rmse_log_no_diffraction", "rmse_log_no_ct",
+           "wavelength_ratio", "lambda_exponent", "rmse_log_full", "rmse_log_no_diffraction", "rmse_log_no_ct",
            "peak_share_diffraction", "rmse_log_full_free", "peak_share_free"]
 HEADS = {"verdict_by": "verdict hangs on", "margin_gradient": "margin gradient",
          "margin_wavelength": "margin wavelength", "margin_lobe": "margin lobe", "selected_lobes": "lobes kept",
          "grad_score_g": "gradient score G", "grad_cells": "decided cells",
          "grad_band_deg_g": "band theta_h (deg) G", "wavelength_ratio": "wavelength ratio",
+         "lambda_exponent": "lambda exponent (samples)",
          "rmse_log_full": "rmse_log full", "rmse_log_no_diffraction": "rmse_log no diffraction",
          "rmse_log_no_ct": "rmse_log no CT", "peak_share_diffraction": "peak share diffraction",
          "rmse_log_full_free": "rmse_log full, free peak", "peak_share_free": "peak share, free peak"}
@@ -38,7 +39,11 @@ INTRO = ("<p>Gradient test: share of the decidable wide-angle cells whose data g
          "is closer to the diffraction prediction (parallel to grad f) than to the Cook-Torrance one "
          "(theta_h = const tilted by 1/(cos ti cos to) and the Fresnel slope of the ridge). "
          "Wavelength check: spread of the channels against f_c over their spread without the wavelength "
-         "(&lt; 1 collapses; the verdict is vetoed from 5). Lobe "
+         "(&lt; 1 collapses; the verdict is vetoed from 5). On scattered spectral samples the gradient "
+         "test is not run (no grid) and the wavelength ratio is the wavelength law's: rmse_log of the full "
+         "model fitted with each band's wavelength over that with every band at one wavelength (&lt; 1: "
+         "the wavelength enters as diffraction predicts; required); the fitted exponent n of the "
+         "diffraction amplitude ~ lambda^-n is shown (4 in theory). Lobe "
          "comparison: penalised rmse_log with and without each lobe. Peak share: part of the fitted "
          "value at the specular peak carried by the diffraction lobe; the fits keep it at most equal to "
          "Cook-Torrance's (the talk's model), and the *_free columns show the full fit without that "
@@ -54,7 +59,8 @@ def write_index(out: str | os.PathLike, analyses: list[Any]) -> None:
     rows = [a.row() for a in analyses]
     buf = io.StringIO()
     if rows:
-        w = csv.DictWriter(buf, fieldnames=list(rows[0]), lineterminator="\n")
+        fields = list(dict.fromkeys(k for r in rows for k in r))     # tables and samples: the union
+        w = csv.DictWriter(buf, fieldnames=fields, restval="", lineterminator="\n")
         w.writeheader()
         w.writerows(rows)
     with writing(out / "analysis.csv"):
@@ -70,9 +76,16 @@ def write_index(out: str | os.PathLike, analyses: list[Any]) -> None:
     for a, r in zip(analyses, rows):
         h.append(f"<h2 id='{html.escape(a.name)}'>{html.escape(a.name)}: {r['verdict']}</h2>"
                  f"<p>lobes kept: {html.escape(r['selected_lobes'])}; final model: "
-                 f"{html.escape(r['final_model'])}</p><div class='figs'>")
-        for kind, p in zip(FIGURES, figure_paths(Path(), a.name)):     # relative: figures/NAME_KIND.png
-            h.append(f"<a href='{p.as_posix()}'><img src='{p.as_posix()}' alt='{kind}'></a>")
+                 f"{html.escape(r['final_model'])}</p>")
+        if of_samples(a):
+            h.append(f"<p>{html.escape(r['data'])}; gradient test {html.escape(r['gradient_test'])}: the test on "
+                     f"the model fitted to them would be no evidence, so the verdict rests on the lobe "
+                     f"comparison and the wavelength law (fitted exponent of lambda "
+                     f"{html.escape(r['lambda_exponent'] or 'n/a')} +- {html.escape(r['lambda_exponent_se'] or 'n/a')}"
+                     f", theory 4 on a spectrally flat surface).</p>")
+        h.append("<div class='figs'>")
+        for p in figure_paths(Path(), a):     # relative: figures/NAME_KIND.png
+            h.append(f"<a href='{p.as_posix()}'><img src='{p.as_posix()}' alt='{p.stem}'></a>")
         h.append("</div>")
     with writing(out / "index.html"):
         atomic_write_text(out / "index.html", "\n".join(h))

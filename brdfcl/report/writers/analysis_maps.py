@@ -4,7 +4,8 @@ One (90, 90) float32 image per quantity and channel (rows theta_h, columns theta
 there is no value): the gradient test's angle to grad f (``angle_f``, where significant) and
 vote (``consistent``), and the measured and fitted values (``measured``, the lobe groups
 ``diffuse_diffraction`` and ``ct``, the ``full`` fit), named ``QUANTITY.CHANNEL`` (R, G, B for
-three channels, else the channel's name, brdfcl.model.compose.Model.channels).
+three channels, else the channel's name, brdfcl.model.compose.Model.channels).  Scattered samples
+have no such slice: no map is written for them.
 """
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ import numpy as np
 
 from brdfcl.model.compose import Model
 from brdfcl.report.files import write_exr
+from brdfcl.report.writers.analysis_figures import of_samples
 from brdfcl.report.writers.base import ANALYSIS, Item, Job, Writer
 
 SLICES = ("measured", "diffuse_diffraction", "ct", "full")
@@ -31,6 +33,8 @@ class AnalysisMaps(Writer):
     def write(self, job: Job, item: Item) -> None:
         a = item.analysis
         assert a is not None
+        if of_samples(a):          # scattered samples: no grid
+            return
         images = {}
         for c, ch in enumerate(map(exr_channel, Model(a.specs["full"]).channels)):
             images[f"angle_f.{ch}"] = np.where(a.gradient.significant[c], a.gradient.angle_f[c], np.nan)

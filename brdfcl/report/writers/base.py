@@ -68,7 +68,7 @@ class Job:
     exports: frozenset[str] = frozenset()         # export writers asked for: "merl", "brdf_explorer"
     figures: bool = False                         # the analysis figures (PNG)
     pages: bool = False                           # the run's report, OUT/report/
-    tables: dict[str, str] = field(default_factory=dict)     # material name -> measured file
+    tables: dict[str, str] = field(default_factory=dict)     # material name -> measured file (any format)
     model: Callable[..., Model] = Model           # the Model of a spec (and wavelengths; the run's carries --fix)
     engine: Callable[[str], Engine] | None = None  # a compiled Engine of a spec (to tabulate fits)
     log: Callable[[str], None] = _quiet

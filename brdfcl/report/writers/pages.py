@@ -32,7 +32,7 @@ class ReportPages(Writer):
             title = f"brdfcl fits in {job.out}"
         else:
             entries = [Entry.from_result(i.analysis.final, i.table, verdict=i.analysis.verdict,
-                                         figures=figure_paths(job.out, i.name) if job.figures else [])
+                                         figures=figure_paths(job.out, i.analysis) if job.figures else [])
                        for i in items if i.analysis is not None]
             if not entries:
                 return None

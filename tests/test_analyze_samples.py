@@ -1,0 +1,103 @@
+"""brdfcl analyze on scattered spectral samples: the verdict on synthetic materials of known
+diffraction, the report's contents, and the real Cornell measurement."""
+import csv
+
+import numpy as np
+import pytest
+
+from brdfcl.analysis.samples import SAMPLE_RULE, GRADIENT_NOT_RUN
+from brdfcl.app.analyze import analyze
+from brdfcl.data.csvsamples import write_csv
+from brdfcl.data.samples import Channel, make_samples
+from brdfcl.model.compose import Model
+from brdfcl.model.lobes.cells import Cells
+
+LAMBDAS = tuple(np.round(np.linspace(0.40, 0.70, 11), 3))
+CHANNELS = [Channel(f"{x * 1000:g}nm", x) for x in LAMBDAS]
+
+
+def _material(name, spec, params, made_at=LAMBDAS, n=1500, seed=0):
+    """Samples of ``spec`` at random directions, made with the bands ``made_at`` (labelled LAMBDAS),
+    1% multiplicative noise."""
+    rng = np.random.default_rng(seed)
+    ti, to = np.arccos(rng.uniform(0.2, 0.98, n)), np.arccos(rng.uniform(0.2, 0.98, n))
+    pi, po = np.zeros(n), rng.uniform(-np.pi, np.pi, n)
+    model = Model(spec, lambdas=made_at)
+    v = model.as_dict(model.defaults())
+    for i, c in enumerate(model.channels):
+        for k, val in params.items():
+            if f"{k}_{c}" in v:
+                v[f"{k}_{c}"] = val(LAMBDAS[i]) if callable(val) else val
+    v.update({k: val for k, val in params.items() if k in v})
+    flat = make_samples(None, ti, pi, to, po, np.ones((n, len(CHANNELS))), CHANNELS, name=name)
+    p = model.reference(Cells.from_directions(flat.wi, flat.wo), model.only_lobes(v, None), jacobian=False)
+    p = p.T * np.exp(0.01 * rng.normal(size=p.T.shape))
+    return make_samples(None, ti, pi, to, po, p, CHANNELS, name=name)
+
+
+DIFFRACTING = {"diffuse.rho": 0.02, "diffraction.rho": 0.04, "diffraction.a": 2.0,
+               "ct.rho": 0.3, "ct.alpha": 0.05}
+PLASTIC = {"diffuse.rho": lambda lam: 0.05 + 0.3 * (lam - 0.4), "ct.rho": 0.4, "ct.alpha": 0.08}
+
+
+@pytest.fixture(scope="module")
+def analysed(tmp_path_factory):
+    src = tmp_path_factory.mktemp("spectral")
+    write_csv(_material("diffracting", "diffuse+diffraction+ggx", DIFFRACTING), src / "diffracting.csv")
+    write_csv(_material("plastic", "diffuse+ggx", PLASTIC, seed=1), src / "plastic.csv")
+    # a halo made at one wavelength in every band: scattering that ignores the wavelength
+    grey = tuple(0.55 + 1e-4 * i for i in range(len(LAMBDAS)))
+    write_csv(_material("grey-halo", "diffuse+diffraction+ggx", DIFFRACTING, made_at=grey, seed=2),
+              src / "grey-halo.csv")
+    out = tmp_path_factory.mktemp("out") / "a"
+    results = analyze(src, out, pages=True)
+    return {a.name: a for a in results}, out
+
+
+def test_the_verdicts_of_known_materials(analysed):
+    res, _ = analysed
+    assert res["diffracting"].verdict == "diffraction"
+    assert res["diffracting"].law_ratio < 0.5 and res["diffracting"].spectral.ratio < 0.5
+    assert abs(res["diffracting"].spectral.exponent - 4.0) < 0.3
+    assert res["plastic"].verdict == "none" and res["plastic"].final_model.count("diffraction") == 0
+    grey = res["grey-halo"]
+    assert grey.verdict == "none" and grey.law_ratio > 2
+    assert "wavelength" in grey.margins()["verdict_by"]
+    assert all(a.rule == SAMPLE_RULE for a in res.values())
+
+
+def test_the_diffracting_fit_recovers_its_parameters(analysed):
+    res, _ = analysed
+    p = res["diffracting"].fits["full"].params
+    assert p["ct.alpha"] == pytest.approx(0.05, rel=0.02)
+    assert p["diffraction.a"] == pytest.approx(2.0, rel=0.05)
+    for c in Model("diffuse+diffraction+ggx", lambdas=LAMBDAS).channels:
+        assert p[f"diffraction.rho_{c}"] == pytest.approx(0.04, rel=0.05)
+
+
+def test_the_report_says_what_was_run(analysed):
+    _, out = analysed
+    rows = {r["material"]: r for r in csv.DictReader((out / "analysis.csv").open())}
+    assert set(rows) == {"diffracting", "plastic", "grey-halo"}
+    for r in rows.values():
+        assert r["gradient_test"] == GRADIENT_NOT_RUN and r["margin_gradient"] == ""
+        assert r["data"] == "1500 scattered samples, 11 bands"
+        assert float(r["wavelength_ratio"]) > 0 and r["lambda_exponent"] != ""
+    for name in rows:
+        assert (out / "figures" / f"{name}_spectral.png").stat().st_size > 10000
+        assert (out / "figures" / f"{name}_in_plane.png").stat().st_size > 10000
+        assert not (out / f"{name}.exr").exists()
+    index = (out / "index.html").read_text()
+    assert "gradient test not run: scattered samples have no (theta_h, theta_d) grid" in index
+    assert "figures/diffracting_spectral.png" in index
+    page = (out / "report" / "diffracting.html").read_text()
+    assert "Measured samples and the fit in the plane of incidence" in page
+    assert "diffracting_spectral.png" in page
+
+
+def test_krylon_is_analysed(krylon, tmp_path):
+    (a,) = analyze([krylon.path], None)
+    assert a.verdict in ("diffraction", "none") and a.spectral is not None
+    assert a.spectral.n_wide > 1000 and len(a.spectral.wavelengths) == 31
+    assert a.fits["full"].errors["rel_rmse"] < 0.3
+    assert a.row()["gradient_test"] == GRADIENT_NOT_RUN
