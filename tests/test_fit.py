@@ -23,6 +23,8 @@ def test_recovers_every_demo_parameter(demo_db):
     for name, t in truth.items():
         (r,) = _fit([demo_db / f"{name}.binary"], model=t["model"])
         assert r.success, r.status
+        # exact fits stop at the float32 floor: converged, even where the final stage used its cap
+        assert r.status.startswith("converged"), (name, r.status)
         for k, v in t["params"].items():
             assert r.params[k] == pytest.approx(v, rel=0.01), (name, k)
 

@@ -124,7 +124,7 @@ class Fitter:
         found = global_search(objective, t.coarse, names=names, options=o, penalty=o.ct_peak_global, log=log)
         start = pick_starts(objective, t.full, found, n_materials=len(names))
         batch.started(found, objective.loss(t.full, start.x, np.arange(len(names))))
-        x0, local = start.x, o
+        x0, local, previewed = start.x, o, None
         if t.preview is not None:       # multi-resolution: converge on every n-th cell first
             previewed = _converged(refine(objective, t.preview, x0, options=o, log=log), len(names))
             batch.previewed(previewed)
@@ -133,8 +133,20 @@ class Fitter:
         for step in refine(objective, t.full, x0, options=local, log=log):
             batch.progress(step.running, step.loss)
             if step.finished.mat.size:
-                batch.finish(evaluate(objective, t.full, step.finished))
+                batch.finish(_finished_status(evaluate(objective, t.full, step.finished), previewed, o))
         return batch.results()
+
+
+def _finished_status(done: StageResult, previewed: StageResult | None, o: FitOptions) -> StageResult:
+    """A row that converged on the preview cells and then used every full-table iteration the
+    multi-resolution stage allows has not failed: its status says so instead of "iteration limit"."""
+    if previewed is None:
+        return done
+    for j, i in enumerate(done.mat):
+        if done.status[j] == "iteration limit" and previewed.status[i].startswith("converged"):
+            done.status[j] = (f"converged (on every {o.preview_stride}th cell; then the "
+                              f"{o.preview_final_iter} full-table iterations of the multi-resolution stage)")
+    return done
 
 
 def _converged(steps, n: int) -> StageResult:
