@@ -233,3 +233,31 @@ def test_info_shows_width_reason_and_self_test():
     float_lines = [ln for ln in lines if ln.startswith("float: vector width")]
     assert len(float_lines) == len(all_devices())
     assert all("self-test passed" in ln and "(" in ln for ln in float_lines), float_lines
+
+
+def test_the_kernel_hash_follows_every_term_module(tmp_path, monkeypatch):
+    """Cached decisions about compiled programs (vector widths) are keyed by a hash of what the
+    kernels are made from, a user's own term module included, without generating any C."""
+    import dataclasses
+    import types
+
+    from brdfcl.kernels import codegen
+    from brdfcl.model.terms import REGISTRY
+    codegen.kernel_sources_hash.cache_clear()
+    before = codegen.kernel_sources_hash()
+    src = tmp_path / "my_ndf.py"
+    src.write_text("# version 1\n")
+    mod = types.ModuleType("my_ndf")
+    mod.__file__ = str(src)
+    monkeypatch.setitem(sys.modules, "my_ndf", mod)
+    mine = dataclasses.replace(REGISTRY["ndf"]["ggx"], name="my_ggx", origin="my_ndf")
+    monkeypatch.setitem(REGISTRY["ndf"], "my_ggx", mine)
+    try:
+        codegen.kernel_sources_hash.cache_clear()
+        registered = codegen.kernel_sources_hash()
+        src.write_text("# version 2\n")
+        codegen.kernel_sources_hash.cache_clear()
+        edited = codegen.kernel_sources_hash()
+    finally:
+        codegen.kernel_sources_hash.cache_clear()
+    assert len({before, registered, edited}) == 3

@@ -47,9 +47,10 @@ class MerlTable:
         out *= SCALE.astype(dtype)[:, None]
         return out
 
-    def brdf_at(self, index, dtype=np.float64) -> np.ndarray:
-        """BRDF values (3, len(index)) at some cells, without a copy of the whole table."""
-        out = np.empty((3, len(index)), dtype=dtype)
+    def brdf_at(self, index, dtype=np.float64, out=None) -> np.ndarray:
+        """BRDF values (3, len(index)) at some cells, without a copy of the whole table (into
+        ``out`` when given)."""
+        out = np.empty((3, len(index)), dtype=dtype) if out is None else out
         for c in range(3):
             np.multiply(self.stored[c].take(index), SCALE[c], out=out[c], casting="same_kind")
         return out
