@@ -5,7 +5,7 @@ import csv
 import numpy as np
 import pytest
 
-from brdfcl.analysis.samples import SAMPLE_RULE, GRADIENT_NOT_RUN
+from brdfcl.analysis.samples import GRADIENT_NOT_RUN, SAMPLE_RULE
 from brdfcl.app.analyze import analyze
 from brdfcl.data.csvsamples import write_csv
 from brdfcl.data.samples import Channel, make_samples

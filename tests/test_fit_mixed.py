@@ -72,3 +72,15 @@ def test_analyze_takes_the_same_mixed_folder(mixed, tmp_path):
     assert k["gradient_test"].startswith("not run") and k["grad_cells"] == "" and float(k["wavelength_ratio"]) > 0
     assert m["gradient_test"] == "" and m["grad_cells"] != ""
     assert (out / "synth-fabric.exr").exists() and not (out / "krylon_blue.exr").exists()
+
+
+def test_two_files_of_one_material_name_give_one_result(krylon, tmp_path):
+    from brdfcl.data.csvsamples import write_csv
+    src = tmp_path / "in"
+    src.mkdir()
+    shutil.copy(krylon.path, src / "krylon_blue.brdf")
+    write_csv(krylon, src / "krylon_blue.csv")
+    r = _run(src, "--out", tmp_path / "o")
+    assert "fitted 1 materials" in r.stdout and "1 skipped" in r.stdout, r.stderr
+    assert (f"skipped: {src / 'krylon_blue.csv'}: material name 'krylon_blue' already taken by "
+            f"{src / 'krylon_blue.brdf'} (one result per name; rename one file to fit both)") in r.stderr

@@ -49,14 +49,31 @@ def _program_check(index, real, vector_width):
 
 
 def cmd_synth(args):
-    from brdfcl.model.synth import DEMO, write_synth
-    mats = args.materials.split(",") if args.materials else None
+    from brdfcl.model.synth import DEMO, SPECTRAL, write_spectral_synth, write_synth
+    if args.out and args.out_flag and args.out != args.out_flag:
+        raise UsageError(f"two output folders ({args.out}, --out {args.out_flag}): give one")
+    out = args.out_flag or args.out
+    if not out:
+        raise UsageError("give an output folder: brdfcl synth OUT (or --out OUT)")
+    known, what = (SPECTRAL, "spectral") if args.like else (DEMO, "demo")
+    mats = [m.strip() for m in args.materials.split(",") if m.strip()] if args.materials else None
     if mats:
-        bad = [m for m in mats if m not in DEMO]
+        bad = [m for m in mats if m not in known]
         if bad:
-            raise UsageError(f"unknown demo material(s) {', '.join(bad)}; valid: {', '.join(DEMO)}")
-    write_synth(args.out, mats, noise=args.noise, missing=args.missing, seed=args.seed)
-    print(f"wrote {len(mats or DEMO)} materials and truth.json to {args.out}")
+            raise UsageError(f"unknown {what} material(s) {', '.join(bad)}; valid: {', '.join(known)}")
+    if not args.like:
+        if args.formats is not None:
+            raise UsageError("--formats applies to spectral materials (with --like FILE) only")
+        write_synth(out, mats, noise=args.noise, missing=args.missing, seed=args.seed)
+        print(f"wrote {len(mats or DEMO)} materials and truth.json to {out}")
+        return 0
+    if args.missing:
+        raise UsageError("--missing applies to the MERL demo only (not with --like)")
+    formats = (args.formats.split(",") if args.formats is not None
+               else default_of(write_spectral_synth, "formats"))
+    write_spectral_synth(out, args.like, mats, noise=args.noise, seed=args.seed, formats=formats)
+    print(f"wrote {len(mats or SPECTRAL)} spectral materials at the directions and bands of {args.like} "
+          f"and truth.json to {out}")
     return 0
 
 
@@ -166,7 +183,7 @@ def build_parser():
     from brdfcl.app import calibrate
     from brdfcl.app.analyze import analyze
     from brdfcl.app.run import fit_all
-    from brdfcl.model.synth import write_synth
+    from brdfcl.model.synth import write_spectral_synth, write_synth
     from brdfcl.optim.fit import FitOptions
     ap = argparse.ArgumentParser(prog="brdfcl", description=__doc__)
     ap.add_argument("--version", action="version", version=f"brdfcl {__version__}")
@@ -182,15 +199,25 @@ def build_parser():
     p.add_argument("--vector-width", type=int, default=None, help="check this width instead of choosing")
     p.set_defaults(func=cmd_info)
 
-    p = sub.add_parser("synth", help="write the synthetic demo database (MERL format)")
-    p.add_argument("out", help="output folder")
+    p = sub.add_parser("synth", help="write the synthetic demo database (MERL format), or with --like "
+                                     "spectral materials at the directions and bands of a measurement")
+    p.add_argument("out", nargs="?", default=None, help="output folder (or --out)")
+    p.add_argument("--out", dest="out_flag", metavar="DIR", default=None, help="output folder")
+    p.add_argument("--like", metavar="FILE", default=None,
+                   help="a spectral measurement (.brdf, .csv): write the synthetic spectral materials at its "
+                        "sample directions and wavelengths as scattered samples, instead of the MERL demo")
+    p.add_argument("--formats", default=None,
+                   help="with --like: comma-separated formats to write, brdf (Cornell) and/or csv (default "
+                        f"{','.join(default_of(write_spectral_synth, 'formats'))})")
     p.add_argument("--noise", type=float, default=default_of(write_synth, "noise"),
-                   help="relative Gaussian noise (default %(default)s)")
+                   help="relative Gaussian noise (default %(default)s; with --like each value is multiplied by "
+                        "exp(noise * N(0, 1)))")
     p.add_argument("--missing", type=float, default=default_of(write_synth, "missing"),
                    help="fraction of cells marked missing (default %(default)s)")
     p.add_argument("--seed", type=int, default=default_of(write_synth, "seed"),
                    help="seed of the noise and missing cells (default %(default)s)")
-    p.add_argument("--materials", default=None, help="comma-separated subset of the demo materials")
+    p.add_argument("--materials", default=None,
+                   help="comma-separated subset of the demo materials (with --like: of the spectral ones)")
     p.set_defaults(func=cmd_synth)
 
     p = sub.add_parser("fit-all", help="fit every measurement of a folder: MERL .binary, Cornell .brdf, "

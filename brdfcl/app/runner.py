@@ -146,6 +146,7 @@ class Runner:
         self.quiet = quiet
         self.paths = database_paths(source)
         self.report = RunReport()
+        self.paths = self._one_per_name(self.paths)
         self.progress = Progress(0, True)
         self.job: Job | None = None
         self.writers: list[Writer] = []
@@ -158,6 +159,21 @@ class Runner:
             self.writers = writers_for(self.job)
             for w in self.writers:
                 w.prepare(self.job)
+
+    def _one_per_name(self, paths: list[str]) -> list[str]:
+        """The paths with distinct material names: one result per name (NAME.json), so a second
+        file of a name (krylon.brdf beside krylon.csv) is skipped with its reason."""
+        first: dict[str, str] = {}
+        kept = []
+        for p in paths:
+            name = material_name(p)
+            if name in first:
+                self.skip(p, f"{p}: material name '{name}' already taken by {first[name]} (one result per name; "
+                             f"rename one file to fit both)")
+                continue
+            first[name] = p
+            kept.append(p)
+        return kept
 
     @staticmethod
     def batches(paths: Sequence[T], size: int) -> Iterator[Sequence[T]]:

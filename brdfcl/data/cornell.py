@@ -1,4 +1,5 @@
-"""Reader of the Cornell ``.brdf`` ASCII format of spectral gonioreflectometer measurements.
+"""Reader and writer of the Cornell ``.brdf`` ASCII format of spectral gonioreflectometer
+measurements.
 
 Layout (as read by pbrt-v2's measured BRDF, which ships such files)::
 
@@ -12,6 +13,10 @@ Layout (as read by pbrt-v2's measured BRDF, which ships such files)::
 specular side).  The count may share its line with the first wavelengths.  Unlike pbrt's
 token-stream reader, a sample must sit on one line: a wrong column count is then reported at
 the line that has it instead of shifting every later sample.
+
+``write_cornell`` writes ``Samples`` of spectral bands in this layout, every number with Python's
+shortest round-trip repr, so that ``read_cornell`` gives back the same angles, values and
+wavelengths exactly (brdfcl synth --like writes synthetic materials with it).
 """
 from __future__ import annotations
 
@@ -19,8 +24,10 @@ import os
 
 import numpy as np
 
+from brdfcl._version import __version__
+
 from .errors import DataError, parse_numbers, parse_rows, read_text
-from .samples import Channel, Samples, make_samples
+from .samples import RGB_WAVELENGTHS_UM, Channel, Samples, make_samples
 
 SUFFIX = ".brdf"
 WAVELENGTH_RANGE_NM = (100.0, 100000.0)
@@ -85,3 +92,57 @@ def _channels(path: str | os.PathLike[str], wls_nm: list[float], lines: list[int
             raise DataError(path, f"repeated wavelength {x:g} nm", line)
         seen.add(x)
     return tuple(Channel(f"{x:g}nm", x / 1000.0) for x in wls_nm)
+
+
+WAVELENGTHS_PER_LINE = 10
+
+
+def write_cornell(samples: Samples, path: str | os.PathLike[str]) -> None:
+    """Write spectral samples in the Cornell format: a ``#`` header saying what wrote it, the
+    number of bands, their wavelengths in nm, then ``theta_i phi_i theta_s phi_s v_1 .. v_C`` per
+    sample (radians, BRDF in 1/sr), every number as Python's shortest round-trip repr.
+
+    ValueError (one line) for what the format cannot hold: channels that are not spectral bands
+    (R, G, B) or whose wavelength is missing, out of range or repeated, and values that are not
+    finite numbers."""
+    nm = [_wavelength_nm(samples, c) for c in samples.channels]
+    if not nm:
+        raise ValueError(f"{samples.name}: no channel to write in the Cornell format")
+    if len(set(nm)) != len(nm):
+        raise ValueError(f"{samples.name}: two channels share a wavelength; the Cornell format names "
+                         "bands by their wavelength")
+    values = np.asarray(samples.values, dtype=np.float64)
+    if not np.isfinite(values).all():
+        raise ValueError(f"{samples.name}: values with NaN or infinity (missing values) cannot be written "
+                         "in the Cornell format")
+    table = np.column_stack([samples.theta_i, samples.phi_i, samples.theta_o, samples.phi_o, values]).tolist()
+    with open(path, "w", encoding="utf-8", newline="\n") as f:
+        f.write(f"# written by brdfcl {__version__} (brdfcl.data.cornell.write_cornell): "
+                f"{' '.join(samples.name.split())}\n"
+                f"# {samples.n_samples} samples; angles in radians, values: BRDF in 1/sr\n\n"
+                f"# num wls\n{len(nm)}\n\n# wls\n")
+        for s in range(0, len(nm), WAVELENGTHS_PER_LINE):
+            f.write(" ".join(nm[s:s + WAVELENGTHS_PER_LINE]) + "\n")
+        f.write("\n# theta i, phi i, theta s, phi s, spectral sample values\n\n")
+        for row in table:
+            f.write(" ".join(repr(float(x)) for x in row) + "\n")
+
+
+def _wavelength_nm(samples: Samples, c: Channel) -> str:
+    """A channel's wavelength in nm as written: a number that reads back as the same um."""
+    um = getattr(c, "wavelength_um", None)
+    if um is None or not np.isfinite(um) or um <= 0:
+        raise ValueError(f"{samples.name}: channel {c.name!r} has no wavelength; the Cornell format needs "
+                         "one per band")
+    if c.name.upper() in RGB_WAVELENGTHS_UM:
+        raise ValueError(f"{samples.name}: channel {c.name!r} is not a spectral band (R, G, B); the Cornell "
+                         "format holds spectral samples only (write them as CSV)")
+    x = float(um) * 1000.0
+    lo, hi = WAVELENGTH_RANGE_NM
+    if not lo <= x <= hi:
+        raise ValueError(f"{samples.name}: channel {c.name!r} at {x:g} nm is out of the range "
+                         f"[{lo:g}, {hi:g}] nm of the Cornell format")
+    for y in (x, np.nextafter(x, np.inf), np.nextafter(x, -np.inf)):   # the nm that reads back as um
+        if float(repr(float(y))) / 1000.0 == um:
+            return repr(float(y))
+    return repr(x)
