@@ -10,7 +10,7 @@ from brdfcl.model.compose import SHADOWING_ALIASES
 from brdfcl.model.lobes import CookTorrance, Diffraction, Diffuse
 from brdfcl.model.terms import REGISTRY, Param, Term
 
-KINDS = {"ndf": "Normal distributions D (Cook-Torrance lobes: `ggx`, `beckmann`, `sgd`, `epd`)",
+KINDS = {"ndf": "Normal distributions D (a Cook-Torrance lobe is named by its D)",
          "shadowing": "Shadowing and masking G (`smith` picks the one defined for the D)",
          "fresnel": "Fresnel F",
          "psd": "Surface power spectra S(f) (diffraction lobe)"}

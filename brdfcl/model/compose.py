@@ -3,7 +3,7 @@
 Model strings join lobes with ``+``; options follow a lobe after ``:``, e.g.
 ``diffuse+diffraction:hp+ggx:smith:schlick``.  Lobes: ``diffuse``,
 ``diffraction[:PSD][:FRESNEL]``, and a Cook-Torrance lobe named by its
-distribution ``ggx|beckmann|sgd|epd[:SHADOWING][:FRESNEL]``.  A kind may appear any
+distribution ``ggx|gtr|abc|beckmann|sgd|epd[:SHADOWING][:FRESNEL]``.  A kind may appear any
 number of times: its lobes' parameters are prefixed ``ct``, ``ct2``, ``ct3``, ... in order
 (``diffuse``, ``diffuse2``; ``diffraction``, ``diffraction2``).  Each lobe has a role
 (diffuse, diffraction, reflection) by which the rest of the package finds it.
