@@ -100,7 +100,7 @@ def cmd_fit_all(args):
         report = fit_all(source, args.out, opts, batch=args.batch, export=args.export_merl,
                          quiet=args.quiet, log=log, client=client, select_lobes=args.select_lobes,
                          free_peak=args.free_peak, overwrite=args.overwrite, pages=not args.no_report,
-                         rgb=args.rgb)
+                         rgb=args.rgb, forms=args.forms)
     finally:
         if client is not None:
             client.close()
@@ -233,6 +233,9 @@ def build_parser():
                         "(without it such results stop the run)")
     p.add_argument("--select-lobes", action="store_true",
                    help="fit with and without each lobe and keep what the material needs (brdfcl analyze)")
+    p.add_argument("--forms", default=None, metavar="NDFS[:FRESNELS]",
+                   help="with --select-lobes: choose each material's reflection-lobe form among these, e.g. "
+                        "ggx,gtr,beckmann:schlick,dielectric (by the same penalised error)")
     p.add_argument("--workers", type=int, default=0, help="fit on a local Dask cluster of N workers")
     p.add_argument("--scheduler", default=None, help="fit on the Dask cluster at this address")
     p.set_defaults(func=cmd_fit_all)

@@ -25,7 +25,8 @@ class ResultsDiffer(ValueError):
 OPTION_FLAGS = {"model": "--model", "metric": "--metric", "cosw": "--no-cos", "cutoff_deg": "--cutoff",
                 "real": "--double", "global_method": "--global", "n_candidates": "--candidates",
                 "n_starts": "--starts", "lm.max_iter": "--max-iter", "seed": "--seed", "fixed": "--fix",
-                "ct_peak": "--ct-peak", "select_lobes": "--select-lobes", "free_peak": "--free-peak"}
+                "ct_peak": "--ct-peak", "select_lobes": "--select-lobes", "free_peak": "--free-peak",
+                "forms": "--forms"}
 
 
 def resume(run: Runner, options: dict, overwrite: bool) -> list[str]:

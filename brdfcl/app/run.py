@@ -40,7 +40,8 @@ from brdfcl.data.inputs import (
 from brdfcl.data.merl import material_name
 from brdfcl.data.readers import read_samples
 from brdfcl.data.rgb import to_rgb
-from brdfcl.optim.fit import FitOptions
+from brdfcl.optim.fit import FitOptions, Fitter
+from brdfcl.optim.forms import choose_form, form_variants, parse_forms
 from brdfcl.report.writers import FIT, IMPLEMENTED_WRITERS, Job, export_writers
 
 # This module's API, with the names of the runner and of brdfcl.data.inputs callers import from here.
@@ -51,7 +52,7 @@ __all__ = ["FileReader", "InputOverwriteError", "Models", "OPTION_FLAGS", "Progr
 
 def fit_all(source, out=None, options: FitOptions | None = None, batch=100, export: bool | str | Iterable[str] = False,
             quiet=True, log=None, client=None, select_lobes=False, free_peak=False, overwrite=False,
-            pages=False, rgb=False, **kw) -> RunReport:
+            pages=False, rgb=False, forms: str | None = None, **kw) -> RunReport:
     """Fit every material of a database; write results to ``out`` if given.
 
     ``source``: folder, file or list of files.  ``options`` or keyword arguments
@@ -69,11 +70,18 @@ def fit_all(source, out=None, options: FitOptions | None = None, batch=100, expo
     (brdfcl.optim.fit.Fitter.fit_samples); ``rgb`` first converts their spectra to linear sRGB
     (brdfcl.data.rgb.to_rgb: D65, CIE 1931 2 deg), fitted with the R, G, B wavelengths of MERL
     tables.  Their fits have no MERL / BRDF Explorer export and no report page (those read a MERL
-    table)."""
+    table).
+
+    ``forms`` (with ``select_lobes``): the candidate forms of the reflection lobe,
+    ``NDF[,NDF...][:FRESNEL[,FRESNEL...]]`` (brdfcl.optim.forms); each material's form is chosen by
+    the penalised error before its lobes are, and recorded in NAME.json (``form``, ``form_errors``)."""
     opts = options or FitOptions(**kw)
+    if forms is not None and not select_lobes:
+        raise ValueError("--forms chooses among forms in the lobe selection: give it with --select-lobes")
+    form_specs = form_variants(opts.model, *parse_forms(forms)) if forms is not None else None
     if select_lobes:        # what the lobe comparison fits with (brdfcl.analysis.analyze), so what is recorded
         opts = replace(opts, fixed={}, ct_peak=not free_peak)
-    models = Models(opts, select_lobes=select_lobes, free_peak=free_peak)
+    models = Models(opts, select_lobes=select_lobes, free_peak=free_peak, forms=form_specs)
     recorded = {**models.options, "export": bool(export), **({"rgb": True} if rgb else {})}
     run = Runner(source, out, FIT, log=log, quiet=quiet, options=recorded,
                  exports=_exports(export), pages=pages, model=models.model, engine=models.engine)
@@ -86,7 +94,7 @@ def fit_all(source, out=None, options: FitOptions | None = None, batch=100, expo
         todo = [p for p in todo if is_table(p)]
         _fit_samples(run, samples, models, batch, rgb)
     if select_lobes:
-        _fit_selected(run, todo, opts, batch)
+        _fit_selected(run, todo, opts, batch, form_specs)
     elif client is not None:
         fit_on_cluster(client, run, todo, opts, batch)
     else:
@@ -148,12 +156,47 @@ def _fit_samples(run: Runner, paths: list[str], models: Models, batch: int, rgb:
                 fitter.fit_samples(part, on_result=run.fitted, log=run.log)
 
 
-def _fit_selected(run: Runner, todo: list[str], opts: FitOptions, batch: int) -> None:
+def _fit_selected(run: Runner, todo: list[str], opts: FitOptions, batch: int, forms: dict | None = None) -> None:
     """--select-lobes: the lobe comparison of brdfcl.analysis.analyze decides each material's model;
-    its final fit (without the diffraction lobe where the verdict is 'none') is the result."""
+    its final fit (without the diffraction lobe where the verdict is 'none') is the result.  With
+    ``forms`` ({key: model spec}, brdfcl.optim.forms.form_variants) each material's form is chosen
+    first, and its lobes are compared in that form."""
     if not todo:
         return
     with run.tracking(len(todo)):
-        analyze(todo, None, opts, batch=batch, log=run.log, figures=False, ct_peak=opts.ct_peak,
-                on_skip=run.skip, on_material=lambda a: run.fitted(
-                    a.final, {"selected_by": "lobe comparison", "verdict": a.verdict}))
+        chosen = _choose_forms(run, todo, opts, batch, forms) if forms else {opts.model: (todo, {})}
+        for spec, (paths, info) in chosen.items():
+            def done(a: Any, info: dict = info) -> None:
+                run.fitted(a.final, {"selected_by": "lobe comparison", "verdict": a.verdict, **info.get(a.name, {})})
+            analyze(paths, None, replace(opts, model=spec), batch=batch, log=run.log, figures=False,
+                    ct_peak=opts.ct_peak, on_skip=run.skip, on_material=done)
+
+
+def _choose_forms(run: Runner, todo: list[str], opts: FitOptions, batch: int, forms: dict) -> dict:
+    """{model spec: (paths, {material: what NAME.json records of the choice})}: every material fitted
+    in every form (one load of each batch), the form of least penalised error chosen."""
+    chosen: dict[str, tuple[list, dict]] = {}
+    fitters = {k: Fitter(replace(opts, model=s)) for k, s in forms.items()}
+    first = next(iter(fitters.values()))
+    for part in run.batches(todo, batch):
+        loaded = run.load(part, first)
+        if loaded is None:
+            continue
+        names, full, coarse, paths = loaded
+        errors: dict[str, dict[str, float]] = {n: {} for n in names}
+        for key, f in fitters.items():
+            for r in f.fit(names, full, coarse, log=run.log):
+                if r.success:
+                    errors[r.name][key] = r.errors["rmse_log"]
+            run.log(f"form {key}: fitted {len(names)} materials")
+        for name, path in zip(names, paths):
+            if not errors[name]:
+                run.skip(path, f"{path}: no form could be fitted")
+                continue
+            key, pen = choose_form(errors[name], {k: forms[k] for k in errors[name]})
+            paths_, info = chosen.setdefault(forms[key], ([], {}))
+            paths_.append(path)
+            info[name] = {"form": key, "form_errors": {k: {"rmse_log": errors[name][k], "penalised": pen[k]}
+                                                       for k in errors[name]}}
+            run.log(f"{name}: form {key}")
+    return chosen

@@ -86,9 +86,11 @@ class Models:
     model carries the run's fixed parameters; selected sub-models have none."""
 
     def __init__(self, opts: FitOptions, engine: Engine | None = None, select_lobes: bool = False,
-                 free_peak: bool = False):
+                 free_peak: bool = False, forms: dict | None = None):
         self.opts = opts
         self.options = recorded_options(opts, select_lobes, free_peak)
+        if forms:           # --forms: the candidates the choice was among (only then recorded)
+            self.options["forms"] = sorted(forms)
         main = Model(opts.model, fixed=opts.fixed)
         self.main = main.spec
         self._models: dict[Any, Model] = {main.spec: main}

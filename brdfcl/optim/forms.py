@@ -1,0 +1,64 @@
+"""Which form a reflection lobe takes: its NDF and its Fresnel term, chosen per material.
+
+The talk fixes the lobes (diffuse, diffraction, Cook-Torrance) but not the form of the
+Cook-Torrance lobe: a highlight with a power-law tail wants a heavy-tailed NDF (GTR), a coated
+dielectric a dielectric Fresnel.  ``form_variants`` rewrites a model with every candidate form of
+its reflection lobes (the shadowing word kept: ``smith`` becomes the chosen NDF's own Smith term);
+each is fitted, and the form is chosen by the penalised error of the lobe comparison
+(brdfcl.optim.selection): rmse_log x (1 + 0.02 x free parameters), so a form with an extra
+parameter (GTR's tail exponent) is kept only where it earns it, and a form with fewer (one
+refractive index instead of an F0 per channel) wins ties.
+"""
+from __future__ import annotations
+
+from brdfcl.model.compose import Model, ModelError, parse_lobe
+from brdfcl.optim.selection import select
+
+NDF_FORMS = ("ggx", "gtr", "beckmann")
+FRESNEL_FORMS = ("schlick", "dielectric")
+
+
+def parse_forms(text: str) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """``NDF[,NDF...][:FRESNEL[,FRESNEL...]]`` (e.g. ``ggx,gtr:schlick,dielectric``) as (NDFs,
+    Fresnels); a part left out keeps the model's own.  ModelError names an unknown word."""
+    from brdfcl.model.terms import REGISTRY
+    ndf_text, _, fresnel_text = text.partition(":")
+    ndfs = tuple(w.strip().lower() for w in ndf_text.split(",") if w.strip())
+    fresnels = tuple(w.strip().lower() for w in fresnel_text.split(",") if w.strip())
+    for words, kind in ((ndfs, "ndf"), (fresnels, "fresnel")):
+        bad = [w for w in words if w not in REGISTRY[kind]]
+        if bad:
+            raise ModelError(f"forms '{text}': unknown {kind} {', '.join(bad)}; valid: {', '.join(REGISTRY[kind])}")
+    return ndfs, fresnels
+
+
+def form_variants(spec: str, ndfs=NDF_FORMS, fresnels=FRESNEL_FORMS) -> dict[str, str]:
+    """{'ndf:fresnel': model spec}: ``spec`` with every reflection lobe given that NDF and Fresnel
+    (empty ``ndfs`` / ``fresnels``: the lobe's own).  A form whose shadowing is not defined for an
+    NDF is left out; the model's own form is always among them."""
+    lobes = Model(spec).spec.split("+")
+    own = [parse_lobe(t).spec().split(":") for t in lobes if parse_lobe(t).role == "reflection"]
+    if not own:
+        return {}
+    out = {}
+    for ndf in ndfs or (own[0][0],):
+        for fresnel in fresnels or (own[0][2],):
+            parts = []
+            for text in lobes:
+                if parse_lobe(text).role == "reflection":
+                    _, shadowing, _ = parse_lobe(text).spec().split(":")
+                    parts.append(f"{ndf}:{shadowing}:{fresnel}")
+                else:
+                    parts.append(text)
+            try:
+                out[f"{ndf}:{fresnel}"] = Model("+".join(parts)).spec
+            except ModelError:
+                continue
+    out.setdefault(f"{own[0][0]}:{own[0][2]}", Model(spec).spec)
+    return out
+
+
+def choose_form(errors: dict, specs: dict) -> tuple[str, dict]:
+    """The form with the lowest penalised error: (key, {key: penalised error}), as
+    brdfcl.optim.selection.select (``errors``: rmse_log by form key, ``specs``: their models)."""
+    return select(errors, specs)
