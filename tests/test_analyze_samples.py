@@ -11,6 +11,7 @@ from brdfcl.data.csvsamples import write_csv
 from brdfcl.data.samples import Channel, make_samples
 from brdfcl.model.compose import Model
 from brdfcl.model.lobes.cells import Cells
+from brdfcl.report.sample_figures import in_plane, incidence_panels
 
 LAMBDAS = tuple(np.round(np.linspace(0.40, 0.70, 11), 3))
 CHANNELS = [Channel(f"{x * 1000:g}nm", x) for x in LAMBDAS]
@@ -20,8 +21,10 @@ def _material(name, spec, params, made_at=LAMBDAS, n=1500, seed=0):
     """Samples of ``spec`` at random directions, made with the bands ``made_at`` (labelled LAMBDAS),
     1% multiplicative noise."""
     rng = np.random.default_rng(seed)
-    ti, to = np.arccos(rng.uniform(0.2, 0.98, n)), np.arccos(rng.uniform(0.2, 0.98, n))
+    ti = rng.choice(np.radians(np.arange(10, 80, 10)), n)           # an instrument's incidence angles
+    to = np.arccos(rng.uniform(0.2, 0.98, n))
     pi, po = np.zeros(n), rng.uniform(-np.pi, np.pi, n)
+    po[: n // 8] = rng.choice([0.0, np.pi], n // 8)                 # some in the plane of incidence
     model = Model(spec, lambdas=made_at)
     v = model.as_dict(model.defaults())
     for i, c in enumerate(model.channels):
@@ -64,6 +67,7 @@ def test_the_verdicts_of_known_materials(analysed):
     assert grey.verdict == "none" and grey.law_ratio > 2
     assert "wavelength" in grey.margins()["verdict_by"]
     assert all(a.rule == SAMPLE_RULE for a in res.values())
+    assert all(a.row()["verdict_by"] for a in res.values())
 
 
 def test_the_diffracting_fit_recovers_its_parameters(analysed):
@@ -83,7 +87,10 @@ def test_the_report_says_what_was_run(analysed):
         assert r["gradient_test"] == GRADIENT_NOT_RUN and r["margin_gradient"] == ""
         assert r["data"] == "1500 scattered samples, 11 bands"
         assert float(r["wavelength_ratio"]) > 0 and r["lambda_exponent"] != ""
+    res, _ = analysed
     for name in rows:
+        mask, _ = in_plane(res[name].samples)
+        assert len(incidence_panels(res[name].samples, mask)) == 4      # the in-plane figure has its panels
         assert (out / "figures" / f"{name}_spectral.png").stat().st_size > 10000
         assert (out / "figures" / f"{name}_in_plane.png").stat().st_size > 10000
         assert not (out / f"{name}.exr").exists()
@@ -97,7 +104,7 @@ def test_the_report_says_what_was_run(analysed):
 
 def test_krylon_is_analysed(krylon, tmp_path):
     (a,) = analyze([krylon.path], None)
-    assert a.verdict in ("diffraction", "none") and a.spectral is not None
+    assert a.verdict == "none" and a.margins()["verdict_by"].endswith("lobe") and a.spectral is not None
     assert a.spectral.n_wide > 1000 and len(a.spectral.wavelengths) == 31
     assert a.fits["full"].errors["rel_rmse"] < 0.3
     assert a.row()["gradient_test"] == GRADIENT_NOT_RUN

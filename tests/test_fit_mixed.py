@@ -84,3 +84,28 @@ def test_two_files_of_one_material_name_give_one_result(krylon, tmp_path):
     assert "fitted 1 materials" in r.stdout and "1 skipped" in r.stdout, r.stderr
     assert (f"skipped: {src / 'krylon_blue.csv'}: material name 'krylon_blue' already taken by "
             f"{src / 'krylon_blue.brdf'} (one result per name; rename one file to fit both)") in r.stderr
+
+
+@pytest.mark.parametrize("rgb", [False, True])
+def test_sample_fits_get_report_pages(krylon, tmp_path, rgb):
+    if rgb:
+        pytest.importorskip("colour")
+    src = tmp_path / "in"
+    src.mkdir()
+    shutil.copy(krylon.path, src / "krylon_blue.brdf")
+    r = subprocess.run([*CLI, "fit-all", str(src), "--out", str(tmp_path / "o"), "--quiet", *(["--rgb"] * rgb)],
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert (tmp_path / "o" / "report" / "krylon_blue" / "krylon_blue-in-plane-slices.png").stat().st_size > 10000
+    assert "Measured samples and the fit in the plane of incidence" in (
+        tmp_path / "o" / "report" / "krylon_blue.html").read_text()
+
+
+def test_select_lobes_takes_scattered_samples(krylon, tmp_path):
+    src = tmp_path / "in"
+    src.mkdir()
+    shutil.copy(krylon.path, src / "krylon_blue.brdf")
+    r = _run(src, "--out", tmp_path / "o", "--select-lobes")
+    assert "fitted 1 materials" in r.stdout, r.stderr
+    k = json.loads((tmp_path / "o" / "krylon_blue.json").read_text())
+    assert k["selected_by"] == "lobe comparison" and k["verdict"] == "none" and len(k["wavelengths_um"]) == 31

@@ -28,8 +28,9 @@ def test_variants_keep_the_other_lobes_and_the_shadowing_word():
     v = form_variants("diffuse+diffraction+ggx:smith-hc:schlick", ("ggx", "gtr"), ("schlick", "dielectric"))
     assert v["gtr:dielectric"] == "diffuse+diffraction:hp:none+gtr:smith-hc:dielectric"
     assert set(v) == {"ggx:schlick", "ggx:dielectric", "gtr:schlick", "gtr:dielectric"}
-    # sgd has no Smith term of its own: that form is left out, the model's own always kept
-    assert set(form_variants("diffuse+ggx", ("sgd",), ())) == {"ggx:schlick"}
+    assert set(form_variants("diffuse+ggx", (), ("dielectric",))) == {"ggx:dielectric"}   # its own NDF
+    with pytest.raises(ModelError, match="form sgd:schlick of 'diffuse\\+ggx'"):   # sgd has no Smith term
+        form_variants("diffuse+ggx", ("sgd",), ())
     assert parse_forms("GGX, gtr :dielectric") == (("ggx", "gtr"), ("dielectric",))
     with pytest.raises(ModelError, match="unknown ndf foo"):
         parse_forms("ggx,foo")

@@ -62,11 +62,9 @@ def analyze(source: Any, out: str | os.PathLike | None = None, options: FitOptio
     run = Runner(source, out, ANALYSIS, log=log, on_skip=on_skip, figures=figures, pages=pages)
     results = Analyses()
     results.skipped = run.report.skipped
-    fitters = {k: Fitter(replace(opts, model=s, fixed={}, ct_peak=ct_peak)) for k, s in specs.items()}
+    fitters = variant_fitters(opts, specs, ct_peak)
     base = fitters["full"]
-    if ct_peak:     # the constrained fit from both global searches (brdfcl.optim.fit), and a free one
-        fitters["full_local"] = Fitter(replace(base.opts, ct_peak_global=False), engine=base.engine)
-        fitters["full_free"] = Fitter(replace(base.opts, ct_peak=False), engine=base.engine)
+    if ct_peak:
         specs["full_free"] = specs["full_local"] = specs["full"]
 
     tables = [p for p in run.paths if is_table(p)]
@@ -88,9 +86,7 @@ def analyze(source: Any, out: str | os.PathLike | None = None, options: FitOptio
             fits[k] = {r.name: r for r in f.fit(names, full, coarse)}
             run.log(f"fitted {len(names)} materials with {specs[k]} ({k}) in {time.perf_counter() - t:.1f} s")
         del full, coarse
-        if "full_local" in fits:
-            other = fits.pop("full_local")
-            fits["full"] = {n: (r if r.loss <= other[n].loss else other[n]) for n, r in fits["full"].items()}
+        best_of_both(fits, "full", "full_local")
         for name, path in zip(names, read):
             try:
                 brdf = read_merl(path).brdf()
@@ -116,6 +112,27 @@ def analyze(source: Any, out: str | os.PathLike | None = None, options: FitOptio
     return results
 
 
+def variant_fitters(opts: FitOptions, specs: dict, ct_peak: bool, lambdas: tuple | None = None) -> dict:
+    """A Fitter per compared variant (brdfcl.optim.selection.variants) and, with the peak
+    constraint, the full model from a global search without it (``full_local``) and the full model
+    without the constraint (``full_free``), sharing the full model's engine."""
+    fitters = {k: Fitter(replace(opts, model=sp, fixed={}, ct_peak=ct_peak), lambdas=lambdas)
+               for k, sp in specs.items() if k in COMPARED}
+    base = fitters["full"]
+    if ct_peak:     # the constrained fit from both global searches (brdfcl.optim.fit), and a free one
+        for key, o in (("full_local", replace(base.opts, ct_peak_global=False)),
+                       ("full_free", replace(base.opts, ct_peak=False))):
+            fitters[key] = Fitter(o, engine=base.engine, lambdas=lambdas)
+    return fitters
+
+
+def best_of_both(fits: dict, key: str, other: str) -> None:
+    """Keep under ``key`` each material's better fit of ``key`` and ``other`` (removed)."""
+    if other in fits:
+        alt = fits.pop(other)
+        fits[key] = {n: (r if r.loss <= alt[n].loss else alt[n]) for n, r in fits[key].items()}
+
+
 def _analyze_samples(run: Runner, paths: list[str], opts: FitOptions, specs: dict, ct_peak: bool,
                      batch: int) -> Iterator[tuple[str, SampleAnalysis]]:
     """(path, SampleAnalysis) of each readable samples file, fitted with every compared model in
@@ -129,14 +146,13 @@ def _analyze_samples(run: Runner, paths: list[str], opts: FitOptions, specs: dic
             continue
         groups.setdefault(tuple(float(x) for x in s.wavelengths), []).append((p, s))
     for lambdas, group in groups.items():
-        fitters = {k: Fitter(replace(opts, model=sp, fixed={}, ct_peak=ct_peak), lambdas=lambdas)
-                   for k, sp in specs.items() if k in COMPARED}
+        fitters = variant_fitters(opts, specs, ct_peak, lambdas)
         base = fitters["full"]
+        grey = grey_lambdas(lambdas)            # the wavelength law's rival, searched as the full model
+        fitters[GREY] = Fitter(base.opts, lambdas=grey)
         if ct_peak:
-            for key, o in (("full_local", replace(base.opts, ct_peak_global=False)),
-                           ("full_free", replace(base.opts, ct_peak=False))):
-                fitters[key] = Fitter(o, engine=base.engine, lambdas=lambdas)
-        fitters[GREY] = Fitter(base.opts, lambdas=grey_lambdas(lambdas))     # the wavelength law's rival
+            fitters[GREY + "_local"] = Fitter(replace(base.opts, ct_peak_global=False), engine=fitters[GREY].engine,
+                                              lambdas=grey)
         for part in run.batches(group, batch):
             samples = [s for _, s in part]
             fits = {}
@@ -145,8 +161,10 @@ def _analyze_samples(run: Runner, paths: list[str], opts: FitOptions, specs: dic
                 fits[k] = {r.name: r for r in f.fit_samples(samples)}
                 run.log(f"fitted {len(samples)} sample sets ({len(lambdas)} bands) with "
                         f"{specs.get(k, specs['full'])} ({k}) in {time.perf_counter() - t:.1f} s")
-            if "full_local" in fits:
-                other = fits.pop("full_local")
-                fits["full"] = {n: (r if r.loss <= other[n].loss else other[n]) for n, r in fits["full"].items()}
+            best_of_both(fits, "full", "full_local")
+            best_of_both(fits, GREY, GREY + "_local")
             for path, s in part:
+                if not any(fits[k][s.name].success for k in COMPARED if k in fits):
+                    run.skip(path, f"{path}: no compared model could be fitted")
+                    continue
                 yield path, analyze_samples(s, {k: fits[k][s.name] for k in fits}, specs, cutoff_deg=opts.cutoff_deg)

@@ -69,8 +69,8 @@ def fit_all(source, out=None, options: FitOptions | None = None, batch=100, expo
     with one channel per band at its wavelength, materials with the same bands in one batch
     (brdfcl.optim.fit.Fitter.fit_samples); ``rgb`` first converts their spectra to linear sRGB
     (brdfcl.data.rgb.to_rgb: D65, CIE 1931 2 deg), fitted with the R, G, B wavelengths of MERL
-    tables.  Their fits have no MERL / BRDF Explorer export and no report page (those read a MERL
-    table).
+    tables.  Their spectral fits have no MERL / BRDF Explorer export (an RGB fit has); their report
+    page shows the samples against the fit in the plane of incidence.
 
     ``forms`` (with ``select_lobes``): the candidate forms of the reflection lobe,
     ``NDF[,NDF...][:FRESNEL[,FRESNEL...]]`` (brdfcl.optim.forms); each material's form is chosen by
@@ -87,10 +87,10 @@ def fit_all(source, out=None, options: FitOptions | None = None, batch=100, expo
                  exports=_exports(export), pages=pages, model=models.model, engine=models.engine)
     todo = resume(run, recorded, overwrite) if run.job is not None else run.paths
     samples = [p for p in todo if not is_table(p)]
-    if samples and (select_lobes or client is not None):
-        raise ValueError(f"{samples[0]}: scattered samples are fitted here only, without "
-                         f"{'--select-lobes' if select_lobes else 'a cluster'} (not yet supported)")
-    if samples:
+    if samples and (client is not None or (select_lobes and (forms is not None or rgb))):
+        how = "a cluster" if client is not None else "--forms" if forms is not None else "--rgb and --select-lobes"
+        raise ValueError(f"{samples[0]}: scattered samples are fitted here, without {how} (not yet supported)")
+    if samples and not select_lobes:      # --select-lobes analyses them with the tables (brdfcl.app.analyze)
         todo = [p for p in todo if is_table(p)]
         _fit_samples(run, samples, models, batch, rgb)
     if select_lobes:

@@ -18,7 +18,8 @@ import pyopencl as cl
 from brdfcl.data.geometry import DEFAULT_CUTOFF_DEG, table_geometry
 from brdfcl.model.lobes.cells import Cells
 
-READ_WORKERS = min(4, os.cpu_count() or 1)     # threads reading MERL files (brdfcl.device.cellsets.extract)
+_CPUS = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+READ_WORKERS = min(4, _CPUS)     # threads reading MERL files (extract): the CPUs this process may use
 
 
 @dataclass
@@ -74,7 +75,7 @@ def extract(tables, indices, dtype=np.float32, on_error=None, workers=READ_WORKE
     """Read each table once and keep its values at each index set: (names, [(n_mat, C, n_i)]).
 
     ``tables`` yields MerlTable objects or callables returning one (files are read lazily, by
-    ``workers`` threads: parsing a file releases the GIL, so two cores read about twice as fast);
+    ``workers`` threads: reading and subsetting a file release the GIL, so the cores read in parallel);
     a table that raises is reported to ``on_error(item, exc)`` and skipped (re-raised if None).
     Each table's values go straight into the result arrays: no list of parts to stack."""
     items = list(tables)

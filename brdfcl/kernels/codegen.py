@@ -57,6 +57,8 @@ def kernel_sources_hash() -> str:
             origin = getattr(sys.modules.get(t.origin), "__file__", None)
             if origin:
                 files.add(Path(origin))
+            else:                   # registered from no file (a notebook, exec): its generated C
+                h.update(c_source(t).encode())
     for f in sorted(Path(f).resolve() for f in files):
         h.update(f.name.encode() + b"\0" + f.read_bytes())
     for m in IMPLEMENTED_METRICS.values():

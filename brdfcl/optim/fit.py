@@ -124,28 +124,38 @@ class Fitter:
         found = global_search(objective, t.coarse, names=names, options=o, penalty=o.ct_peak_global, log=log)
         start = pick_starts(objective, t.full, found, n_materials=len(names))
         batch.started(found, objective.loss(t.full, start.x, np.arange(len(names))))
-        x0, local, previewed = start.x, o, None
+        x0, local, previewed, before = start.x, o, None, None
         if t.preview is not None:       # multi-resolution: converge on every n-th cell first
             previewed = _converged(refine(objective, t.preview, x0, options=o, log=log), len(names))
             batch.previewed(previewed)
             x0 = previewed.x
+            before = objective.loss(t.full, x0, np.arange(len(names)))
             local = replace(o, probe_dead_lobes=False, lm=replace(o.lm, max_iter=o.preview_final_iter))
         for step in refine(objective, t.full, x0, options=local, log=log):
             batch.progress(step.running, step.loss)
             if step.finished.mat.size:
-                batch.finish(_finished_status(evaluate(objective, t.full, step.finished), previewed, o))
+                batch.finish(_finished_status(evaluate(objective, t.full, step.finished), previewed, before, o))
         return batch.results()
 
 
-def _finished_status(done: StageResult, previewed: StageResult | None, o: FitOptions) -> StageResult:
-    """A row that converged on the preview cells and then used every full-table iteration the
-    multi-resolution stage allows has not failed: its status says so instead of "iteration limit"."""
-    if previewed is None:
+SETTLED = 1e-3           # the full-table iterations lowered the loss by less than this, relative
+NOISE_FLOOR = 1e-5       # rmse_log below which a fit is exact to float32 (changes are rounding)
+
+
+def _finished_status(done: StageResult, previewed: StageResult | None, before: np.ndarray | None,
+                     o: FitOptions) -> StageResult:
+    """A row that converged on the preview cells and whose capped full-table iterations changed
+    its loss by less than SETTLED (or that sits at the float32 floor) has converged: its status
+    says so instead of "iteration limit"; one still improving keeps "iteration limit"."""
+    if previewed is None or before is None:
         return done
     for j, i in enumerate(done.mat):
-        if done.status[j] == "iteration limit" and previewed.status[i].startswith("converged"):
-            done.status[j] = (f"converged (on every {o.preview_stride}th cell; then the "
-                              f"{o.preview_final_iter} full-table iterations of the multi-resolution stage)")
+        if done.status[j] != "iteration limit" or not previewed.status[i].startswith("converged"):
+            continue
+        gain = (before[i] - done.fun[j]) / max(before[i], 1e-300)
+        if gain < SETTLED or done.errors["rmse_log"][j] < NOISE_FLOOR:
+            done.status[j] = (f"converged (on 1 in {o.preview_stride} cells; the {o.preview_final_iter} "
+                              f"full-table iterations of the multi-resolution stage changed the loss by {gain:.1e})")
     return done
 
 

@@ -34,27 +34,29 @@ def parse_forms(text: str) -> tuple[tuple[str, ...], tuple[str, ...]]:
 
 def form_variants(spec: str, ndfs=NDF_FORMS, fresnels=FRESNEL_FORMS) -> dict[str, str]:
     """{'ndf:fresnel': model spec}: ``spec`` with every reflection lobe given that NDF and Fresnel
-    (empty ``ndfs`` / ``fresnels``: the lobe's own).  A form whose shadowing is not defined for an
-    NDF is left out; the model's own form is always among them."""
+    (empty ``ndfs`` / ``fresnels``: the lobe's own), the candidates exactly as asked.  ModelError
+    when a candidate cannot be built (a shadowing not defined for that NDF: the message says which)."""
     lobes = Model(spec).spec.split("+")
     own = [parse_lobe(t).spec().split(":") for t in lobes if parse_lobe(t).role == "reflection"]
     if not own:
-        return {}
+        raise ModelError(f"'{spec}' has no reflection lobe whose form could be chosen")
     out = {}
     for ndf in ndfs or (own[0][0],):
         for fresnel in fresnels or (own[0][2],):
-            parts = []
+            parts, words = [], set()
             for text in lobes:
                 if parse_lobe(text).role == "reflection":
                     _, shadowing, _ = parse_lobe(text).spec().split(":")
                     parts.append(f"{ndf}:{shadowing}:{fresnel}")
+                    words.add(shadowing)
                 else:
                     parts.append(text)
             try:
                 out[f"{ndf}:{fresnel}"] = Model("+".join(parts)).spec
             except ModelError:
-                continue
-    out.setdefault(f"{own[0][0]}:{own[0][2]}", Model(spec).spec)
+                raise ModelError(f"form {ndf}:{fresnel} of '{spec}': {ndf} has no {' or '.join(sorted(words))} "
+                                 f"shadowing; leave {ndf} out of --forms or give the model another shadowing "
+                                 f"(e.g. :vcavity)") from None
     return out
 
 

@@ -131,9 +131,18 @@ def _sample_images(d, e, key) -> dict:
     slices: those need a table)."""
     from brdfcl.data.readers import read_samples
     from brdfcl.report.sample_figures import figure_in_plane
+    samples, model = read_samples(e.table), e.fitted_model()
+    if samples.n_channels != model.n_channels:      # a spectral file fitted as RGB (fit-all --rgb)
+        try:
+            from brdfcl.data.rgb import to_rgb
+            samples = to_rgb(samples)
+        except (ImportError, ValueError):
+            return {}
+    if samples.n_channels != model.n_channels:
+        return {}
     d.mkdir(parents=True, exist_ok=True)
     path = d / f"{e.name}-in-plane-slices.png"
-    figure_in_plane(read_samples(e.table), e.fitted_model(), e.params, path)
+    figure_in_plane(samples, model, e.params, path)
     (d / ".stamp").write_text(key)
     return _classify([path], e.name)
 
