@@ -15,6 +15,7 @@ The machine may be shared: the table gives the median of ``--repeat`` runs of ea
 from __future__ import annotations
 
 import argparse
+import os
 import platform
 import statistics
 import time
@@ -56,6 +57,17 @@ class KernelClock:
 
     def total(self) -> float:
         return sum(self.seconds.values())
+
+
+def cpu_name() -> str:
+    """The CPU's model name (Linux), else what platform says."""
+    try:
+        for line in open("/proc/cpuinfo"):
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
 
 
 def one_run(paths) -> dict:
@@ -105,7 +117,7 @@ def main():
     med = {k: statistics.median(r[k] for r in runs) for k in keys}
     lines = [f"# Stages of a whole-database fit ({len(paths)} materials, one batch)", "",
              f"Data: {a.data} (MERL-proxy). Default options, default device. "
-             f"CPU: {platform.processor() or 'see note'}; "
+             f"CPU: {cpu_name()}, {os.cpu_count()} cores; "
              f"median of {a.repeat} runs in one process (the first builds or reads the program cache). "
              f"Mean evaluations per material: {runs[-1]['_evals']:.0f}; launches per run: {runs[-1]['_launches']}.",
              "", "| stage | s (median) | share of total |", "|---|---|---|"]
