@@ -135,7 +135,7 @@ class MaterialAnalysis:
 
     @property
     def final(self):
-        return next(r for k, r in self.fits.items() if self.specs[k] == self.final_model and k in COMPARED)
+        return final_fit(self.fits, self.specs, self.final_model)
 
     def row(self):
         g, w = self.gradient, self.wavelength
@@ -149,15 +149,37 @@ class MaterialAnalysis:
         out["wavelength_spread"] = _fmt(w.spread)
         out["wavelength_spread_f0"] = _fmt(w.spread_f0)
         out["wavelength_ratio"] = _fmt(w.ratio)
-        for k in ("full", "no_diffraction", "no_ct"):
-            r = self.fits.get(k)
-            out[f"rmse_log_{k}"] = _fmt(r.errors["rmse_log"]) if r else ""
-            out[f"penalised_{k}"] = _fmt(self.penalised.get(k, np.nan)) if r else ""
-        free = self.fits.get("full_free")
-        out["rmse_log_full_free"] = _fmt(free.errors["rmse_log"]) if free else ""
-        out["peak_share_diffraction"] = _fmt(self.peak_share_diffraction)
-        out["peak_share_free"] = _fmt(self.peak_share_free)
-        return out
+        return {**out, **fit_columns(self)}
+
+
+def final_fit(fits: dict, specs: dict, final_model: str):
+    """The compared fit of the final model."""
+    return next(r for k, r in fits.items() if specs[k] == final_model and k in COMPARED)
+
+
+def final_key(verdict: str, selected: str, fits: dict, specs: dict) -> str:
+    """The variant a material's final fit is: the lobe comparison's choice, but without the
+    diffraction lobe where the verdict is ``none``."""
+    if verdict == "none" and Model(specs[selected]).has_role("diffraction"):
+        return "no_diffraction" if "no_diffraction" in fits else selected
+    return selected
+
+
+def fit_columns(a, extra: dict | None = None) -> dict:
+    """The analysis.csv columns of an analysis's fits (a MaterialAnalysis or a SampleAnalysis):
+    rmse_log and penalised error of each compared variant, ``extra``, then the free-peak fit and
+    the peak shares."""
+    out = {}
+    for k in COMPARED:
+        r = a.fits.get(k)
+        out[f"rmse_log_{k}"] = _fmt(r.errors["rmse_log"]) if r else ""
+        out[f"penalised_{k}"] = _fmt(a.penalised.get(k, np.nan)) if r else ""
+    out.update(extra or {})
+    free = a.fits.get("full_free")
+    out["rmse_log_full_free"] = _fmt(free.errors["rmse_log"]) if free else ""
+    out["peak_share_diffraction"] = _fmt(a.peak_share_diffraction)
+    out["peak_share_free"] = _fmt(a.peak_share_free)
+    return out
 
 
 def _fmt(x):
@@ -231,15 +253,10 @@ def analyze_material(name, brdf, fits, specs, rule: Rule | None = None) -> Mater
     diffuse = [sum(full.params.get(lb.slot_name("rho", ch), 0.0) for lb in full_model.lobes_with_role("diffuse"))
                / np.pi for ch in range(3)]
     wl = wavelength_check(brdf, diffuse, full_model.lambdas)
-    lobe_says = Model(specs[sel]).has_role("diffraction")
     m = rule.margins(gm.mean_score, int(gm.n_cells.sum()), wl.ratio, lobe_gain(pen, specs))
     verdict = rule.verdict(m)
-    if verdict == "none" and lobe_says:
-        final_key = "no_diffraction" if "no_diffraction" in fits else sel
-    else:
-        final_key = sel
     free = fits.get("full_free")
-    return MaterialAnalysis(name, verdict, sel, specs[final_key], fits, specs, pen, gm, wl,
+    return MaterialAnalysis(name, verdict, sel, specs[final_key(verdict, sel, fits, specs)], fits, specs, pen, gm, wl,
                             peak_share(specs["full"], full.params),
                             peak_share(specs["full"], free.params) if free else float("nan"), rule=rule)
 

@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from brdfcl.analysis.analyze import COMPARED, Rule, _fmt, lobe_gain, peak_share
+from brdfcl.analysis.analyze import COMPARED, Rule, _fmt, final_fit, final_key, fit_columns, lobe_gain, peak_share
 from brdfcl.analysis.spectral import SpectralCheck, spectral_check
 from brdfcl.data.samples import Samples
 from brdfcl.model.compose import Model
@@ -51,6 +51,8 @@ def grey_lambdas(lambdas) -> tuple:
     the wavelength law of scattering that ignores the wavelength."""
     mid = float(lambdas[len(lambdas) // 2])
     return tuple(mid * (1.0 + GREY_STEP * i) for i in range(len(lambdas)))
+
+
 GRADIENT_NOT_RUN = "not run: scattered samples have no (theta_h, theta_d) grid"
 
 
@@ -91,7 +93,7 @@ class SampleAnalysis:
 
     @property
     def final(self):
-        return next(r for k, r in self.fits.items() if self.specs[k] == self.final_model and k in COMPARED)
+        return final_fit(self.fits, self.specs, self.final_model)
 
     def row(self) -> dict:
         s = self.spectral
@@ -106,16 +108,7 @@ class SampleAnalysis:
                "wide_samples": s.n_wide if s else 0,
                "lambda_exponent": _fmt(s.exponent) if s else "",
                "lambda_exponent_se": _fmt(s.exponent_se) if s else ""}
-        for k in COMPARED:
-            r = self.fits.get(k)
-            out[f"rmse_log_{k}"] = _fmt(r.errors["rmse_log"]) if r else ""
-            out[f"penalised_{k}"] = _fmt(self.penalised.get(k, np.nan)) if r else ""
-        out["rel_rmse_full"] = _fmt(self.fits["full"].errors.get("rel_rmse", np.nan))
-        free = self.fits.get("full_free")
-        out["rmse_log_full_free"] = _fmt(free.errors["rmse_log"]) if free else ""
-        out["peak_share_diffraction"] = _fmt(self.peak_share_diffraction)
-        out["peak_share_free"] = _fmt(self.peak_share_free)
-        return out
+        return {**out, **fit_columns(self, {"rel_rmse_full": _fmt(self.fits["full"].errors.get("rel_rmse", np.nan))})}
 
 
 def law_ratio(fits: dict) -> float:
@@ -140,11 +133,8 @@ def analyze_samples(samples, fits: dict, specs: dict, rule: Rule | None = None,
                          cutoff_deg=80.0 if cutoff_deg is None else cutoff_deg)
     m = rule.margins(float("nan"), 0, law_ratio(fits), lobe_gain(pen, specs))
     verdict = rule.verdict(m)
-    if verdict == "none" and Model(specs[sel]).has_role("diffraction"):
-        final_key = "no_diffraction" if "no_diffraction" in fits else sel
-    else:
-        final_key = sel
     free = fits.get("full_free")
-    return SampleAnalysis(samples.name, verdict, sel, specs[final_key], fits, specs, pen, chk, samples,
+    final = specs[final_key(verdict, sel, fits, specs)]
+    return SampleAnalysis(samples.name, verdict, sel, final, fits, specs, pen, chk, samples,
                           peak_share(specs["full"], full.params, lambdas),
                           peak_share(specs["full"], free.params, lambdas) if free else float("nan"), rule=rule)
