@@ -123,18 +123,20 @@ class Fitter:
         batch = _Batch(self, names, full_data, t.full, on_result, t0)
         found = global_search(objective, t.coarse, names=names, options=o, penalty=o.ct_peak_global, log=log)
         start = pick_starts(objective, t.full, found, n_materials=len(names))
-        batch.started(found, objective.loss(t.full, start.x, np.arange(len(names))))
-        x0, local, previewed, before = start.x, o, None, None
+        loss0 = start.fun
+        if not np.isfinite(loss0).all():          # defaults taken: their loss was not evaluated
+            loss0 = objective.loss(t.full, start.x, np.arange(len(names)))
+        batch.started(found, loss0)
+        x0, local, previewed = start.x, o, None
         if t.preview is not None:       # multi-resolution: converge on every n-th cell first
             previewed = _converged(refine(objective, t.preview, x0, options=o, log=log), len(names))
             batch.previewed(previewed)
             x0 = previewed.x
-            before = objective.loss(t.full, x0, np.arange(len(names)))
             local = replace(o, probe_dead_lobes=False, lm=replace(o.lm, max_iter=o.preview_final_iter))
         for step in refine(objective, t.full, x0, options=local, log=log):
             batch.progress(step.running, step.loss)
             if step.finished.mat.size:
-                batch.finish(_finished_status(evaluate(objective, t.full, step.finished), previewed, before, o))
+                batch.finish(_finished_status(evaluate(objective, t.full, step.finished), previewed, step.start, o))
         return batch.results()
 
 
@@ -142,12 +144,13 @@ SETTLED = 1e-3           # the full-table iterations lowered the loss by less th
 NOISE_FLOOR = 1e-5       # rmse_log below which a fit is exact to float32 (changes are rounding)
 
 
-def _finished_status(done: StageResult, previewed: StageResult | None, before: np.ndarray | None,
+def _finished_status(done: StageResult, previewed: StageResult | None, before: np.ndarray,
                      o: FitOptions) -> StageResult:
     """A row that converged on the preview cells and whose capped full-table iterations changed
     its loss by less than SETTLED (or that sits at the float32 floor) has converged: its status
-    says so instead of "iteration limit"; one still improving keeps "iteration limit"."""
-    if previewed is None or before is None:
+    says so instead of "iteration limit"; one still improving keeps "iteration limit".  ``before``:
+    each material's loss where the full-table iterations started."""
+    if previewed is None:
         return done
     for j, i in enumerate(done.mat):
         if done.status[j] != "iteration limit" or not previewed.status[i].startswith("converged"):

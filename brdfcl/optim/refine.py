@@ -32,6 +32,7 @@ class RefineStep:
     finished: StageResult           # one row per material finished now, at its final point
     running: np.ndarray             # materials still running after a launch (empty: no launch)
     loss: np.ndarray                # (n,) every material's current loss
+    start: np.ndarray               # (n,) every material's loss at its start point
 
 
 @dataclass
@@ -74,6 +75,7 @@ def refine(objective: Objective, target: Target, x0: np.ndarray, *, options: Fit
     log(f"local: Levenberg-Marquardt on {target.cells.index.size} cells per material")
     run = LMRun(_JTJ(objective, target, np.arange(n)), sp.to_y(x0), *sp.y_bounds, options.lm)
     st = run.state
+    start = st.loss.copy()
     held: list[int] = []            # materials finished with a dead lobe, revived at the end
     for step in run.steps():
         done = _finished(objective, st, step.finished)
@@ -81,11 +83,11 @@ def refine(objective: Objective, target: Target, x0: np.ndarray, *, options: Fit
                         dtype=bool)
         held.extend(done.mat[dead].tolist())
         running = np.flatnonzero(step.running) if step.evaluated else np.zeros(0, dtype=int)
-        yield RefineStep(done.rows(np.flatnonzero(~dead)), running, st.loss)
+        yield RefineStep(done.rows(np.flatnonzero(~dead)), running, st.loss, start)
     if held:
         revived = revive(objective, target, _finished(objective, st, np.array(held)), options=options, log=log)
         revived.nfev += st.nfev
-        yield RefineStep(revived, np.zeros(0, dtype=int), st.loss)
+        yield RefineStep(revived, np.zeros(0, dtype=int), st.loss, start)
 
 
 def revive(objective: Objective, target: Target, held: StageResult, *, options: FitOptions,
