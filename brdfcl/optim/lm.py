@@ -43,37 +43,55 @@ class LMState:
 
 
 def _free(g, x, lo, hi):
+    """Parameters (rows of x) not held at a bound by a gradient pointing outwards."""
     return ~(((x <= lo) & (g > 0)) | ((x >= hi) & (g < 0)))
 
 
-def newton_decrement(H, g, x, lo, hi):
-    """g^T H^-1 g on the free set: the loss decrease an undamped Gauss-Newton step predicts."""
-    free = _free(g, x, lo, hi)
-    if not free.any():
-        return 0.0
-    gf = g[free]
-    d = np.linalg.lstsq(H[np.ix_(free, free)], gf, rcond=1e-12)[0]
-    return float(max(gf @ d, 0.0))
+def _on_free(H, g, free, pad):
+    """Every row's system restricted to its free set, as one stack: H on the free block, ``pad``
+    (per row) on the diagonal of the held parameters, g zero there, so that the held block is
+    decoupled and solves to 0."""
+    both = free[:, :, None] & free[:, None, :]
+    eye = np.eye(H.shape[-1], dtype=bool)
+    Hm = np.where(both, H, 0.0) + np.where(eye & ~free[:, :, None], pad[:, None, None], 0.0)
+    return Hm, np.where(free, g, 0.0)
 
 
-def _step(H, g, x, lo, hi, lam):
-    """Damped Gauss-Newton step for one material with the active set removed."""
-    k = x.size
+def newton_decrements(H, g, x, lo, hi):
+    """g^T H^-1 g on each row's free set (m,): the loss decrease an undamped Gauss-Newton step
+    predicts.  H may be singular: the pseudo-inverse, singular values below 1e-12 of the largest
+    dropped (the held block is padded with the free block's largest diagonal, which no
+    eigenvalue of a positive semi-definite H is below, so it does not move that cut)."""
     free = _free(g, x, lo, hi)
-    d = np.zeros(k)
-    if not free.any():
-        return d
-    Hf = H[np.ix_(free, free)]
-    diag = np.diag(Hf).copy()
-    diag = np.maximum(diag, 1e-12 * max(diag.max(), 1e-300))
-    A = Hf + lam * np.diag(diag)
+    diag = np.diagonal(H, axis1=1, axis2=2)
+    pad = np.maximum(np.max(np.where(free, np.abs(diag), 0.0), axis=1), 1e-300)
+    Hm, gf = _on_free(H, g, free, pad)
+    d = np.einsum("mij,mj->mi", np.linalg.pinv(Hm, rcond=1e-12, hermitian=True), gf)
+    dec = np.maximum(np.einsum("mi,mi->m", gf, d), 0.0)
+    return np.where(free.any(axis=1) & np.isfinite(dec), dec, 0.0)
+
+
+def lm_steps(H, g, x, lo, hi, lam):
+    """Damped Gauss-Newton steps (m, k), one per row, with each row's active set removed:
+    (H + lam diag(H)) d = -g on the free set, d = 0 on the held parameters."""
+    free = _free(g, x, lo, hi)
+    diag = np.where(free, np.diagonal(H, axis1=1, axis2=2), 0.0)
+    dmax = np.max(diag, axis=1)
+    diag = np.where(free, np.maximum(diag, 1e-12 * np.maximum(dmax, 1e-300)[:, None]), 0.0)
+    pad = np.maximum(dmax, 1.0)
+    Hm, gf = _on_free(H, g, free, pad)
+    A = Hm + lam[:, None, None] * (diag[:, :, None] * np.eye(H.shape[-1]))
     try:
-        d[free] = np.linalg.solve(A, -g[free])
-    except np.linalg.LinAlgError:
-        d[free] = -g[free] / (diag * (1 + lam))
-    if not np.isfinite(d).all():
-        d[:] = 0
-    return d
+        d = np.linalg.solve(A, -gf[:, :, None])[:, :, 0]
+    except np.linalg.LinAlgError:       # a singular row: each on its own, gradient steps where singular
+        d = np.zeros_like(gf)
+        for i in range(A.shape[0]):
+            try:
+                d[i] = np.linalg.solve(A[i], -gf[i])
+            except np.linalg.LinAlgError:
+                d[i] = np.where(free[i], -gf[i] / (np.where(free[i], diag[i], 1.0) * (1 + lam[i])), 0.0)
+    d = np.where(free, d, 0.0)
+    return np.where(np.isfinite(d).all(axis=1)[:, None], d, 0.0)
 
 
 @dataclass
@@ -118,9 +136,9 @@ class LMRun:
             rows = np.flatnonzero(running)
             if rows.size == 0:
                 break
-            trial = np.array([np.clip(x[i] + _step(H[i], g[i], x[i], lo, hi, lam[i]), lo, hi) for i in rows])
+            trial = np.clip(x[rows] + lm_steps(H[rows], g[rows], x[rows], lo, hi, lam[rows]), lo, hi)
             # stop before launching where even an undamped Gauss-Newton step would gain < ftol
-            pred = np.array([newton_decrement(H[i], g[i], x[i], lo, hi) for i in rows])
+            pred = newton_decrements(H[rows], g[rows], x[rows], lo, hi)
             flat = pred <= opts.ftol * np.maximum(L[rows], 1e-300)
             for i in rows[flat]:
                 status[i] = "converged (predicted decrease below ftol)"
