@@ -11,9 +11,12 @@ fabrics and woods; --all for every one), the same model, metric and cells are fi
   (pip install -e ".[torch]"), on the first --torch-materials materials.
 Errors are sampled during each run.  Outputs in --out: fit_curves.csv (method, setting,
 material, seconds, rmse_log, rmse_l2, rmse_cbrt), fit_vs_time.png and bench_fit.md (time to
-reach the scipy fit's final error, speed-ups, whole-database extrapolation).
+reach the scipy fit's and the PyTorch fit's final errors, speed-ups, the whole database on each
+--devices PoCL against the peers extrapolated).  --published instead compares brdfcl's fits of
+every material with the published SGD and ABC fits (bench/compare_published.py).
 
-    python bench/bench_fit.py [--data DIR] [--all] [--stability]
+    python bench/bench_fit.py [--data DIR] [--all] [--stability] [--devices 'pocl 3.0']
+    python bench/bench_fit.py --published [--published-models MODEL,MODEL]
 """
 from __future__ import annotations
 
@@ -224,6 +227,15 @@ def main(argv=None):
     ap.add_argument("--database-seconds", type=float, default=None,
                     help="measured whole-database brdfcl fit time to put beside the extrapolation "
                          "(default: measure it now with fit-all on --data)")
+    ap.add_argument("--devices", default="",
+                    help="comma-separated device selectors (as --device of brdfcl, e.g. 'pocl 3.0'): brdfcl's "
+                         "default setting and the whole-database time are measured on each as well")
+    ap.add_argument("--database-runs", type=int, default=3, help="whole-database fits per device (median)")
+    ap.add_argument("--published", action="store_true",
+                    help="instead: brdfcl's fits against the published SGD and ABC fits on every material of --data "
+                         "(bench/compare_published.py; writes published.md and published.csv)")
+    ap.add_argument("--published-models", default=DEFAULT_MODEL,
+                    help="brdfcl models compared with --published (comma-separated; the first is the one ranked)")
     ap.add_argument("--stability", action="store_true", help="also run the numerical stability report")
     ap.add_argument("--report-only", action="store_true",
                     help="rebuild bench_fit.md and the plot from --out/fit_curves.csv without fitting")
@@ -239,6 +251,13 @@ def main(argv=None):
         paths = [data / f"{n}.binary" for n in names if (data / f"{n}.binary").exists()]
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
+    if args.published:
+        from compare_published import compare
+        from compare_published import report as published_report
+        print(published_report(out) if args.report_only else
+              compare(paths if args.materials else all_paths, args.published_models.split(","), out,
+                      f"MERL-proxy ({data})"))
+        return 0
     if args.report_only:
         recs = load_curves(out / "fit_curves.csv")
         names = sorted({r.key[2] for r in recs if r.key[0] == "brdfcl"})
@@ -256,6 +275,11 @@ def main(argv=None):
         recs += r
         batch_seconds[s] = total
         print(f"brdfcl {s}: {len(paths)} materials in {total:.1f} s", flush=True)
+    for dev in filter(None, args.devices.split(",")):
+        r, total = run_brdfcl(paths, f"default@{dev}", {"device": dev}, args.model, args.metric)
+        recs += r
+        batch_seconds[f"default@{dev}"] = total
+        print(f"brdfcl default on '{dev}': {len(paths)} materials in {total:.1f} s", flush=True)
     for p in paths[:args.scipy_materials]:
         recs.append(run_scipy(p, model, args.metric, idx))
         print(f"scipy {p.stem}: {recs[-1].rows[-1][0]:.1f} s", flush=True)
@@ -284,6 +308,25 @@ def main(argv=None):
     return 0
 
 
+def database_seconds(all_paths, args, devices):
+    """Median wall time of `brdfcl fit-all`'s fit of every file (reading included), per device
+    (None: the default device), keyed by the device's description."""
+    from brdfcl.app.run import fit_all
+    from brdfcl.device.platforms import pick_device
+    out = {}
+    for dev in devices:
+        _, d = pick_device(dev)
+        name = f"{d.platform.version.split(' Linux')[0]} ({d.name.strip()})"
+        times = []
+        for _ in range(args.database_runs):
+            t = time.perf_counter()
+            fit_all(all_paths, None, FitOptions(model=args.model, metric=args.metric, device=dev))
+            times.append(time.perf_counter() - t)
+        out[name] = float(np.median(times))
+        print(f"whole database on {name}: {out[name]:.1f} s (runs {', '.join(f'{x:.1f}' for x in times)})", flush=True)
+    return out
+
+
 def report(recs, batch_seconds, paths, all_paths, args, out):
     import matplotlib
     matplotlib.use("Agg")
@@ -292,6 +335,7 @@ def report(recs, batch_seconds, paths, all_paths, args, out):
     for r in recs:
         by.setdefault(r.key[:2], {})[r.key[2]] = r
     scipy = by.get(("scipy", "trf"), {})
+    torch_recs = by.get(("pytorch", "adam+lbfgs"), {})
     fig, ax = plt.subplots(figsize=(8, 5))
     lines = [f"# bench_fit: error against run time ({datetime.date.today()})", "",
              f"Data: MERL-proxy, {len(paths)} materials ({', '.join(p.stem for p in paths)}). Model "
@@ -362,16 +406,42 @@ def report(recs, batch_seconds, paths, all_paths, args, out):
         lines += ["", f"Whole set: scipy {t_scipy:.0f} s for {n_s} materials ({per:.1f} s each, one at a "
                   f"time); brdfcl default {batch_seconds.get('default', float('nan')):.1f} s for "
                   f"{len(paths)} materials in one batch."]
-        db = args.database_seconds
-        if db is None and not args.all:
-            from brdfcl.app.run import fit_all
-            t = time.perf_counter()
-            fit_all(all_paths, None, FitOptions(model=args.model, metric=args.metric))
-            db = time.perf_counter() - t
-        if db:
-            lines.append(f"Whole database ({len(all_paths)} materials): brdfcl fit {db:.0f} s (measured, "
-                         f"including reading the files); scipy extrapolated {per * len(all_paths):.0f} s "
-                         f"({per * len(all_paths) / db:.0f}x).")
+        per_db = {None: args.database_seconds} if args.database_seconds else {}
+        if not per_db and not args.report_only:
+            per_db = database_seconds(all_paths, args, [None] + list(filter(None, args.devices.split(","))))
+        if per_db:
+            t_torch = [r.rows[-1][0] for r in torch_recs.values()]
+            lines += ["", f"Whole database ({len(all_paths)} materials), `brdfcl` default options, reading the "
+                      f"files included, median of {args.database_runs} runs in this process, against the peers' "
+                      "per-material times extrapolated (one material after another):", "",
+                      "| device | brdfcl (s) | scipy, extrapolated (s) | speed-up vs scipy | PyTorch, extrapolated (s) "
+                      "| speed-up vs PyTorch |", "|---|---|---|---|---|---|"]
+            for dev, db in per_db.items():
+                tt = np.mean(t_torch) * len(all_paths) if t_torch else float("nan")
+                lines.append(f"| {dev} | {db:.1f} | {per * len(all_paths):.0f} | {per * len(all_paths) / db:.0f}x | "
+                             f"{tt:.0f} | {tt / db:.0f}x |")
+            if t_torch:
+                lines.append(f"\nPyTorch's time is its whole run (Adam then L-BFGS) on {len(t_torch)} materials; "
+                             "it does not reach scipy's error on every one (table above).")
+    if torch_recs:
+        lines += ["", "Time to reach the PyTorch fit's final rmse_log (on the materials PyTorch ran; its own time to "
+                  "that error against each method's):", "",
+                  "| method | setting | materials reaching it | median time (s) | median speed-up vs PyTorch |",
+                  "|---|---|---|---|---|"]
+        for (method, setting), d in sorted(by.items()):
+            ts, sp = [], []
+            for name, r in d.items():
+                if name not in torch_recs:
+                    continue
+                target = torch_recs[name].rows[-1][1] * (1 + 1e-3)
+                t_m = time_to(r, target)
+                if np.isfinite(t_m):
+                    ts.append(t_m)
+                    sp.append(time_to(torch_recs[name], target) / t_m)
+            n = sum(1 for name in d if name in torch_recs)
+            if n:
+                lines.append(f"| {method} | {setting} | {len(ts)}/{n} | {np.median(ts) if ts else float('nan'):.2f} | "
+                             f"{np.median(sp) if sp else float('nan'):.1f}x |")
     lines += ["", "![error against time](fit_vs_time.png)", "",
               "Curves and samples: `fit_curves.csv` (method, setting, material, seconds, rmse_log, rmse_l2, "
               "rmse_cbrt; brdfcl samples carry the fit metric during the run and all three at the end)."]
