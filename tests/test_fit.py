@@ -79,3 +79,20 @@ def test_python_api_fit_all(demo_db, tmp_path):
     rep = fit_all([demo_db / "synth-fabric.binary"], tmp_path, model="diffuse+beckmann:vcavity:none")
     assert rep.ok and rep.results[0].params["ct.alpha"] == pytest.approx(0.6, rel=0.01)
     assert (tmp_path / "synth-fabric.json").exists()
+
+
+def test_warm_start_skips_the_global_stage_and_recovers(demo_db):
+    """``Fitter.fit(start=...)``: the local stage from given values, no global search."""
+    t = json.loads((demo_db / "truth.json").read_text())["materials"]["synth-smooth-plastic"]
+    f = Fitter(FitOptions(model=t["model"]))
+    names, full, coarse = load_batch([read_merl(demo_db / "synth-smooth-plastic.binary")], f)
+    truth = np.array([t["params"].get(n, np.nan) for n in f.model.names])
+    assert np.isfinite(truth).all()
+    start = truth * np.where(np.arange(truth.size) % 2, 1.25, 0.8)       # every parameter 20-25% off
+    (r,) = f.fit(names, full, coarse, start=start[None])
+    (cold,) = Fitter(FitOptions(model=t["model"])).fit(names, full, coarse)
+    assert r.success and r.nfev < cold.nfev / 5                       # the global stage's evaluations skipped
+    for k, v in t["params"].items():
+        assert r.params[k] == pytest.approx(v, rel=0.01), k
+    with pytest.raises(ValueError, match="start values of shape"):
+        f.fit(names, full, coarse, start=truth[None, :-1])

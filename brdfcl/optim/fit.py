@@ -82,10 +82,13 @@ class Fitter:
 
     def fit(self, names: Sequence[str], full_data: np.ndarray, coarse_data: np.ndarray,
             on_result: Callable[[FitResult], None] | None = None,
-            log: Callable[[str], None] = _quiet) -> list[FitResult]:
-        """Fit every material; ``on_result(FitResult)`` is called as each one finishes."""
+            log: Callable[[str], None] = _quiet, start: np.ndarray | None = None) -> list[FitResult]:
+        """Fit every material; ``on_result(FitResult)`` is called as each one finishes.  ``start``
+        (n, model parameters), natural values: a warm start, the local stage from there, no global
+        search (e.g. a richer form from a simpler form's fit)."""
         t0 = time.perf_counter()
-        return self.run(list(names), self.targets(names, full_data, coarse_data), full_data, t0, on_result, log)
+        return self.run(list(names), self.targets(names, full_data, coarse_data), full_data, t0, on_result, log,
+                        start)
 
     def sample_targets(self, samples: Sequence) -> tuple[list[str], Targets, np.ndarray]:
         """Upload scattered measurements (brdfcl.data.samples.Samples, the model's channels): each
@@ -116,13 +119,16 @@ class Fitter:
 
     def run(self, names: list[str], t: Targets, full_data: np.ndarray, t0: float,
             on_result: Callable[[FitResult], None] | None = None,
-            log: Callable[[str], None] = _quiet) -> list[FitResult]:
+            log: Callable[[str], None] = _quiet, start_values: np.ndarray | None = None) -> list[FitResult]:
         """The pipeline on targets already on the device (``full_data``: their values, for the
-        uncertainty)."""
+        uncertainty); ``start_values``: see `fit`."""
         o, objective = self.opts, self.objective
         batch = _Batch(self, names, full_data, t.full, on_result, t0)
-        found = global_search(objective, t.coarse, names=names, options=o, penalty=o.ct_peak_global, log=log)
-        start = pick_starts(objective, t.full, found, n_materials=len(names))
+        if start_values is None:
+            found = global_search(objective, t.coarse, names=names, options=o, penalty=o.ct_peak_global, log=log)
+            start = pick_starts(objective, t.full, found, n_materials=len(names))
+        else:
+            found = start = _warm_start(objective, np.asarray(start_values, dtype=np.float64), len(names))
         loss0 = start.fun
         if not np.isfinite(loss0).all():          # defaults taken: their loss was not evaluated
             loss0 = objective.loss(t.full, start.x, np.arange(len(names)))
@@ -138,6 +144,16 @@ class Fitter:
             if step.finished.mat.size:
                 batch.finish(_finished_status(evaluate(objective, t.full, step.finished), previewed, step.start, o))
         return batch.results()
+
+
+def _warm_start(objective: Objective, values: np.ndarray, n: int) -> StageResult:
+    """Given start values as the global stage's result: one row per material, no evaluations."""
+    if values.shape != (n, objective.model.n_params):
+        raise ValueError(f"start values of shape {values.shape}: expected ({n}, {objective.model.n_params}), "
+                         f"one row of every parameter of {objective.model.spec} per material")
+    x = np.clip(objective.spaces.to_x(values), *objective.spaces.x_bounds)
+    return StageResult(x, np.full(n, np.inf), np.arange(n), np.zeros(n, dtype=int), ["warm start"] * n,
+                       np.ones(n, dtype=bool), "warm start")
 
 
 SETTLED = 1e-3           # the full-table iterations lowered the loss by less than this, relative
