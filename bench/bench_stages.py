@@ -101,6 +101,13 @@ def one_run(paths) -> dict:
     return out
 
 
+def device_name() -> str:
+    """The device a default fit runs on (BRDFCL_DEVICE honoured), with its OpenCL platform."""
+    from brdfcl.device.platforms import pick_device
+    p, d = pick_device()
+    return f"{d.name.strip()} ({p.version.strip()})"
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--data", default=str(Path.home() / ".cache" / "brdfcl" / "proxy-all"))
@@ -116,7 +123,7 @@ def main():
     keys = [k for k in runs[0] if not k.startswith("_")]
     med = {k: statistics.median(r[k] for r in runs) for k in keys}
     lines = [f"# Stages of a whole-database fit ({len(paths)} materials, one batch)", "",
-             f"Data: {a.data} (MERL-proxy). Default options, default device. "
+             f"Data: {a.data} (MERL-proxy). Default options, device: {device_name()}. "
              f"CPU: {cpu_name()}, {os.cpu_count()} cores; "
              f"median of {a.repeat} runs in one process (the first builds or reads the program cache). "
              f"Mean evaluations per material: {runs[-1]['_evals']:.0f}; launches per run: {runs[-1]['_launches']}.",
