@@ -343,23 +343,25 @@ def report(recs, batch_seconds, paths, all_paths, args, out):
              f"every method. brdfcl {__version__}, one process, 2-core machine. brdfcl fits the set "
              "as one batch: its per-material time is the wall time of the whole batch until that "
              "material reached the error (launches are shared), so it is a conservative figure.", ""]
-    # whole-set curves: mean over materials of the best-so-far rmse_log at each time
+    # whole-set curves: mean over the materials every method ran of the best-so-far rmse_log at each time
+    common = set.intersection(*(set(d) for d in by.values()))
     for (method, setting), d in sorted(by.items()):
         grid = np.geomspace(0.05, max(max(r.rows[-1][0] for r in d.values()), 0.1), 200)
         curves = []
-        for r in d.values():
+        for r in (d[k] for k in sorted(common)):
             t, e = best_curve(r)
             curves.append(np.interp(grid, t, e, left=np.nan) if t.size else np.full(grid.size, np.nan))
         curves = np.array(curves)
         started = np.isfinite(curves).all(axis=0)          # once every material has a sample
         ax.plot(grid[started], curves[:, started].mean(axis=0), "-" if method == "brdfcl" else "--",
-                label=f"{method} {setting} ({len(d)} materials)")
+                label=f"{method} {setting}")
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("wall time (s)")
     ax.set_ylabel(f"rmse_{args.metric}, best so far, mean over materials")
     ax.legend(fontsize=8)
-    ax.set_title("error against run time (MERL-proxy)")
+    ax.set_title(f"error against run time (MERL-proxy; mean over the {len(common)} materials every method ran)",
+                 fontsize=10)
     fig.tight_layout()
     fig.savefig(out / "fit_vs_time.png", dpi=100)
     plt.close(fig)
