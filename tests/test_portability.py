@@ -129,6 +129,31 @@ def test_sound_file_checks(tmp_path):
     assert not sound_bitcode(bc)
 
 
+def test_the_cache_check_reads_only_new_or_changed_files(tmp_path, monkeypatch):
+    """A file found sound is remembered by size and time: the next run does not read it again,
+    a changed one is read, a broken one removed with its entry."""
+    from brdfcl.device import program
+    monkeypatch.setenv("BRDFCL_CACHE_DIR", str(tmp_path / "brdfcl"))
+    root = tmp_path / "pocl"
+    monkeypatch.setattr(program, "pocl_cache_dir", lambda platform: root)
+    lib = open(__import__("glob").glob(os.path.dirname(np.__file__) + "/_core/*.so")[0], "rb").read()
+    for e in ("e1", "e2"):
+        (root / "ab" / e / "kern" / "wg").mkdir(parents=True)
+        (root / "ab" / e / "kern" / "wg" / "k.so").write_bytes(lib)
+    reads = []
+    real = program._sound
+    monkeypatch.setattr(program, "_sound", lambda p: reads.append(p) or real(p))
+
+    def repair():
+        program._REPAIRED.discard(root)
+        return program.repair_pocl_cache(None)
+    assert repair() == [] and len(reads) == 2
+    assert repair() == [] and len(reads) == 2                       # nothing read again
+    (root / "ab" / "e2" / "kern" / "wg" / "k.so").write_bytes(lib[: len(lib) // 2])
+    assert repair() == [str(root / "ab" / "e2")] and len(reads) == 3
+    assert (root / "ab" / "e1").is_dir() and not (root / "ab" / "e2").exists()
+
+
 CORRUPT = {
     "truncated program": lambda d: [p.write_bytes(p.read_bytes()[:100]) for p in d.rglob("program.bc")],
     "empty program": lambda d: [p.write_bytes(b"") for p in d.rglob("program.bc")],

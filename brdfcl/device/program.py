@@ -215,25 +215,54 @@ def write_json(path: Path, d: dict) -> None:
     os.replace(tmp, path)
 
 
+def _dirs(path: str) -> list:
+    try:
+        with os.scandir(path) as it:
+            return [e for e in it if e.is_dir(follow_symlinks=False)]
+    except OSError:
+        return []
+
+
 def _cache_files(root: Path) -> list:
-    """(file, its entry folder) for the program bitcode and kernel libraries of a PoCL cache."""
-    return [(p, p.parent) for p in root.glob("*/*/*.bc")] + [(p, p.parents[2]) for p in root.glob("*/*/*/*/*.so")]
+    """(file, its entry folder) as strings for the program bitcode (``*/*/*.bc``) and the kernel
+    libraries (``*/*/*/*/*.so``, the entry three levels up) of a PoCL cache (a walk of plain
+    strings: a cache of thousands of entries took pathlib's glob a second)."""
+    out = []
+    for a in _dirs(str(root)):
+        for entry in _dirs(a.path):
+            try:
+                with os.scandir(entry.path) as it:
+                    items = list(it)
+            except OSError:
+                continue
+            for c in items:
+                if c.name.endswith(".bc") and c.is_file(follow_symlinks=False):
+                    out.append((c.path, entry.path))
+                elif c.is_dir(follow_symlinks=False):
+                    for d in _dirs(c.path):
+                        try:
+                            with os.scandir(d.path) as it:
+                                out += [(f.path, entry.path) for f in it if f.name.endswith(".so")]
+                        except OSError:
+                            continue
+    return out
 
 
 def _fingerprints_file() -> Path:
     return cache_dir() / "pocl-fingerprints.json"
 
 
-def _digest(path: Path) -> str:
-    return hashlib.sha1(path.read_bytes()).hexdigest()
+def _digest(path: str) -> str:
+    return hashlib.sha1(Path(path).read_bytes()).hexdigest()
 
 
-def _matches(path: Path, print_) -> bool:
-    """True when a file is the one fingerprinted: same size and time, or else the same content."""
+def _matches(path: str, print_) -> bool:
+    """True when a file is the one fingerprinted: same size and time, or else the same content
+    (a print without a digest, of a file only checked for soundness, needs the same time)."""
     try:
-        st = path.stat()
+        st = os.stat(path)
         size, mtime, digest = print_
-        return st.st_size == size and (st.st_mtime_ns == mtime or _digest(path) == digest)
+        return st.st_size == size and (st.st_mtime_ns == mtime or (digest is not None and _digest(path) == digest))
     except (OSError, ValueError, TypeError):
         return False
 
@@ -247,9 +276,9 @@ def remember_pocl_cache(platform, since_ns: int) -> None:
     new = {}
     for path, _ in _cache_files(root):
         try:
-            st = path.stat()
+            st = os.stat(path)
             if st.st_mtime_ns >= since_ns:
-                new[str(path)] = [st.st_size, st.st_mtime_ns, _digest(path)]
+                new[path] = [st.st_size, st.st_mtime_ns, _digest(path)]
         except OSError:
             continue
     if not new:
@@ -265,21 +294,36 @@ def remember_pocl_cache(platform, since_ns: int) -> None:
 
 def repair_pocl_cache(platform, log=None) -> list:
     """Remove cache entries with an incomplete file, or with a file that no longer matches its
-    fingerprint (PoCL rebuilds them); once per process and cache.  Returns the removed entry folders."""
+    fingerprint (PoCL rebuilds them); once per process and cache.  A file found sound is
+    remembered by its size and time, so a run reads only the files new or changed since the last
+    (a cache of thousands of entries cost every start a second).  Returns the removed entry folders."""
     root = pocl_cache_dir(platform)
     if root is None or root in _REPAIRED or not root.is_dir():
         return []
     _REPAIRED.add(root)
     prints = read_json(_fingerprints_file())
-    removed = []
+    removed, checked = [], {}
     for path, entry in _cache_files(root):
         if entry in removed:
             continue
-        known = prints.get(str(path))
-        if _sound(path) and (known is None or _matches(path, known)):
+        known = prints.get(path)
+        if known is not None and _matches(path, known):
+            continue            # unchanged since it passed a self-test or this check: not read again
+        if (known is None or known[2] is None) and _sound(Path(path)):
+            try:
+                st = os.stat(path)
+                checked[path] = [st.st_size, st.st_mtime_ns, None]
+            except OSError:
+                pass
             continue
         shutil.rmtree(entry, ignore_errors=True)
         removed.append(entry)
+    if checked or removed:      # remember what was checked, so that the next run reads only new files
+        try:
+            prints.update(checked)
+            write_json(_fingerprints_file(), {k: v for k, v in prints.items() if os.path.exists(k)})
+        except OSError:
+            pass
     if removed and log:
         log(f"brdfcl: removed a broken PoCL kernel-cache entr{'y' if len(removed) == 1 else f'ies ({len(removed)})'}"
             f" from {root}; PoCL compiles them again")
