@@ -91,3 +91,39 @@ def test_fit_all_records_the_chosen_form(demo_db, tmp_path):
                           "--forms", "ggx,beckmann"], capture_output=True, text=True)
     assert bad.returncode != 0 and "Traceback" not in bad.stderr
     assert "--forms chooses among forms in the lobe selection: give it with --select-lobes" in bad.stderr
+
+
+def test_a_containing_form_starts_from_the_contained_forms_fits():
+    from types import SimpleNamespace
+
+    from brdfcl.optim.forms import nested_source, nesting_order, warm_start
+    keys = ["gtr:dielectric", "ggx:dielectric", "gtr:schlick", "beckmann:schlick", "ggx:schlick"]
+    order = sorted(keys, key=nesting_order)
+    assert order.index("ggx:schlick") < order.index("gtr:schlick")
+    assert order.index("ggx:dielectric") < order.index("gtr:dielectric")
+    assert nested_source("gtr:schlick", {"ggx:schlick": []}) == "ggx:schlick"
+    assert nested_source("gtr:schlick", {"ggx:dielectric": []}) is None       # another Fresnel: not contained
+    assert nested_source("beckmann:schlick", {"ggx:schlick": []}) is None
+    gtr = Model("diffuse+gtr:smith:schlick")
+    fit = SimpleNamespace(params={n: 0.3 for n in Model("diffuse+ggx:smith:schlick").names})
+    broken = SimpleNamespace(params={n: np.nan for n in Model("diffuse+ggx:smith:schlick").names})
+    x = warm_start([fit, broken], gtr)
+    gamma = gtr.names.index("ct.gamma")
+    assert x.shape == (2, len(gtr.names)) and x[0, gamma] == 2.0
+    assert np.all(np.delete(x[0], gamma) == 0.3)
+    np.testing.assert_array_equal(x[1], gtr.defaults())                    # nothing usable: the defaults
+
+
+def test_fit_all_refines_gtr_from_the_ggx_fits(demo_db, tmp_path):
+    src, out = tmp_path / "in", tmp_path / "o"
+    src.mkdir()
+    (src / "synth-rough-metal.binary").symlink_to(demo_db / "synth-rough-metal.binary")   # Beckmann: no exact fit
+    r = subprocess.run([sys.executable, "-m", "brdfcl.app.cli", "fit-all", str(src), "--out", str(out),
+                        "--select-lobes", "--forms", "gtr,ggx:schlick", "--no-report"],
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert "form gtr:schlick: fitted 1 materials from the ggx:schlick fits" in r.stdout + r.stderr
+    doc = json.loads((out / "synth-rough-metal.json").read_text())
+    err = {k: v["rmse_log"] for k, v in doc["form_errors"].items()}
+    assert err["ggx:schlick"] > 1e-4                                         # not at the float32 floor
+    assert err["gtr:schlick"] <= err["ggx:schlick"] * (1 + 1e-3)            # contains it, starts at its optimum

@@ -41,7 +41,7 @@ from brdfcl.data.merl import material_name
 from brdfcl.data.readers import read_samples
 from brdfcl.data.rgb import to_rgb
 from brdfcl.optim.fit import FitOptions, Fitter
-from brdfcl.optim.forms import choose_form, form_variants, parse_forms
+from brdfcl.optim.forms import choose_form, form_variants, nested_source, nesting_order, parse_forms, warm_start
 from brdfcl.report.writers import FIT, IMPLEMENTED_WRITERS, Job, export_writers
 
 # This module's API, with the names of the runner and of brdfcl.data.inputs callers import from here.
@@ -184,11 +184,17 @@ def _choose_forms(run: Runner, todo: list[str], opts: FitOptions, batch: int, fo
             continue
         names, full, coarse, paths = loaded
         errors: dict[str, dict[str, float]] = {n: {} for n in names}
-        for key, f in fitters.items():
-            for r in f.fit(names, full, coarse, log=run.log):
+        fitted: dict[str, list] = {}
+        for key in sorted(fitters, key=nesting_order):
+            f = fitters[key]
+            source = nested_source(key, fitted)
+            start = None if source is None else warm_start(fitted[source], f.model)
+            fitted[key] = f.fit(names, full, coarse, log=run.log, start=start)
+            for r in fitted[key]:
                 if r.success:
                     errors[r.name][key] = r.errors["rmse_log"]
-            run.log(f"form {key}: fitted {len(names)} materials")
+            how = f" from the {source} fits (no global search)" if source else ""
+            run.log(f"form {key}: fitted {len(names)} materials{how}")
         for name, path in zip(names, paths):
             if not errors[name]:
                 run.skip(path, f"{path}: no form could be fitted")

@@ -7,15 +7,22 @@ its reflection lobes (the shadowing word kept: ``smith`` becomes the chosen NDF'
 each is fitted, and the form is chosen by the penalised error of the lobe comparison
 (brdfcl.optim.selection): rmse_log x (1 + 0.02 x free parameters), so a form with an extra
 parameter (GTR's tail exponent) is kept only where it earns it, and a form with fewer (one
-refractive index instead of an F0 per channel) wins ties.
+refractive index instead of an F0 per channel) wins ties.  A form whose NDF contains another's
+(``NESTED``: GTR at gamma = 2 is GGX) starts from that form's fits instead of a global search.
 """
 from __future__ import annotations
+
+import numpy as np
 
 from brdfcl.model.compose import Model, ModelError, parse_lobe
 from brdfcl.optim.selection import select
 
 NDF_FORMS = ("ggx", "gtr", "beckmann")
 FRESNEL_FORMS = ("schlick", "dielectric")
+NESTED = {"gtr": ("ggx", {"gamma": 2.0})}
+"""NDFs that contain another at a parameter value (GTR at gamma = 2 is GGX): a form with such an NDF
+is refined from the fits of the contained form with the same Fresnel (a warm start, no global
+search), which also makes its error never worse than that form's."""
 
 
 def parse_forms(text: str) -> tuple[tuple[str, ...], tuple[str, ...]]:
@@ -64,3 +71,35 @@ def choose_form(errors: dict, specs: dict) -> tuple[str, dict]:
     """The form with the lowest penalised error: (key, {key: penalised error}), as
     brdfcl.optim.selection.select (``errors``: rmse_log by form key, ``specs``: their models)."""
     return select(errors, specs)
+
+
+def nesting_order(key: str) -> tuple[int, str]:
+    """Sort key of form keys ('ndf:fresnel'): a contained form before the forms that contain it."""
+    return (int(key.split(":")[0] in NESTED), key)
+
+
+def nested_source(key: str, fitted) -> str | None:
+    """The fitted form ``key`` ('ndf:fresnel') is refined from, if any (its NDF contains that form's)."""
+    ndf, _, fresnel = key.partition(":")
+    if ndf not in NESTED:
+        return None
+    source = f"{NESTED[ndf][0]}:{fresnel}"
+    return source if source in fitted else None
+
+
+def warm_start(source_results, model: Model) -> np.ndarray:
+    """Start values (n, ``model``'s parameters) from the fits of a contained form: shared
+    parameters copied, the containing NDF's own at the values where it equals the contained one,
+    the model's defaults where a source value is not finite."""
+    extra = {f".{p}": v for nested in NESTED.values() for p, v in nested[1].items()}
+    rows = []
+    for r in source_results:
+        row = []
+        for n in model.names:
+            if n in r.params:
+                row.append(r.params[n])
+            else:
+                row.append(next((v for suffix, v in extra.items() if n.endswith(suffix)), np.nan))
+        rows.append(row)
+    x = np.array(rows, dtype=np.float64).reshape(len(rows), len(model.names))
+    return np.where(np.isfinite(x), x, model.defaults()[None, :])
