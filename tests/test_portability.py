@@ -136,7 +136,7 @@ def test_the_cache_check_reads_only_new_or_changed_files(tmp_path, monkeypatch):
     monkeypatch.setenv("BRDFCL_CACHE_DIR", str(tmp_path / "brdfcl"))
     root = tmp_path / "pocl"
     monkeypatch.setattr(program, "pocl_cache_dir", lambda platform: root)
-    lib = open(__import__("glob").glob(os.path.dirname(np.__file__) + "/_core/*.so")[0], "rb").read()
+    lib = open(__import__("glob").glob(os.path.dirname(np.__file__) + "/**/*.so", recursive=True)[0], "rb").read()
     for e in ("e1", "e2"):
         (root / "ab" / e / "kern" / "wg").mkdir(parents=True)
         (root / "ab" / e / "kern" / "wg" / "k.so").write_bytes(lib)
@@ -149,9 +149,17 @@ def test_the_cache_check_reads_only_new_or_changed_files(tmp_path, monkeypatch):
         return program.repair_pocl_cache(None)
     assert repair() == [] and len(reads) == 2
     assert repair() == [] and len(reads) == 2                       # nothing read again
-    (root / "ab" / "e2" / "kern" / "wg" / "k.so").write_bytes(lib[: len(lib) // 2])
-    assert repair() == [str(root / "ab" / "e2")] and len(reads) == 3
+    e1, e2 = (root / "ab" / e / "kern" / "wg" / "k.so" for e in ("e1", "e2"))
+    st = e1.stat()
+    e1.write_bytes(lib[:-8] + b"\0" * 8)                            # damaged in place, times put back:
+    os.utime(e1, ns=(st.st_atime_ns, st.st_mtime_ns))                # only the change time tells
+    e2.write_bytes(lib[: len(lib) // 2])
+    assert sorted(repair()) == [str(root / "ab" / "e2")] and len(reads) == 4   # both read again
     assert (root / "ab" / "e1").is_dir() and not (root / "ab" / "e2").exists()
+    prints = json.loads((tmp_path / "brdfcl" / "pocl-fingerprints.json").read_text())
+    prints[str(e1)] = "not a print"                                  # a damaged print file: no crash
+    (tmp_path / "brdfcl" / "pocl-fingerprints.json").write_text(json.dumps(prints))
+    assert repair() == [] and len(reads) == 5
 
 
 CORRUPT = {

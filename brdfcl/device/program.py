@@ -8,7 +8,8 @@ are then missing: ``INVALID_KERNEL_NAME``) or a truncated kernel library
 place, which only its content shows (LLVM then aborts: "Invalid abbrev number").
 So, before the first build of a process, cache entries with an incomplete file,
 or with a file that differs from the fingerprint brdfcl took when that entry
-last worked, are removed from PoCL's cache (they are recompiled on demand), and
+last worked, are removed from PoCL's cache (they are recompiled on demand; a file
+unchanged in size and times since it was last found sound is not read again), and
 a program whose kernels are missing, or that fails the caller's check, is built
 again under a different cache key.
 """
@@ -227,8 +228,8 @@ def _cache_files(root: Path) -> list:
     """(file, its entry folder) as strings for the program bitcode (``*/*/*.bc``) and the kernel
     libraries (``*/*/*/*/*.so``, the entry three levels up) of a PoCL cache (a walk of plain
     strings: a cache of thousands of entries took pathlib's glob a second)."""
-    out = []
-    for a in _dirs(str(root)):
+    out: list = []
+    for a in _dirs(os.path.abspath(root)):
         for entry in _dirs(a.path):
             try:
                 with os.scandir(entry.path) as it:
@@ -256,15 +257,42 @@ def _digest(path: str) -> str:
     return hashlib.sha1(Path(path).read_bytes()).hexdigest()
 
 
+def _stat_print(st: os.stat_result, digest: str | None) -> list:
+    """A file's print: size, modification and change times (ctime cannot be set back by a
+    restore or ``touch``), and its SHA-1 where it passed a self-test (None: only found sound)."""
+    return [st.st_size, st.st_mtime_ns, digest, st.st_ctime_ns]
+
+
+def _digest_of(print_) -> str | None:
+    """The digest of a print, None for a stat-only print or a malformed one."""
+    return print_[2] if isinstance(print_, list) and len(print_) >= 3 and isinstance(print_[2], str) else None
+
+
 def _matches(path: str, print_) -> bool:
-    """True when a file is the one fingerprinted: same size and time, or else the same content
-    (a print without a digest, of a file only checked for soundness, needs the same time)."""
+    """True when a file is the one printed: same size and times, or else (a self-tested file
+    only) the same content."""
     try:
         st = os.stat(path)
-        size, mtime, digest = print_
-        return st.st_size == size and (st.st_mtime_ns == mtime or (digest is not None and _digest(path) == digest))
-    except (OSError, ValueError, TypeError):
+        size, mtime = print_[0], print_[1]
+        ctime = print_[3] if len(print_) > 3 else None
+        if st.st_size == size and st.st_mtime_ns == mtime and st.st_ctime_ns == ctime:
+            return True
+        digest = _digest_of(print_)
+        return st.st_size == size and digest is not None and _digest(path) == digest
+    except (OSError, ValueError, TypeError, IndexError, KeyError):
         return False
+
+
+def _merge_prints(new: dict) -> None:
+    """Add prints to the file, read again just before writing (another process may have written
+    since): a self-test's print (with a digest) is never replaced by a stat-only one; prints of
+    files gone are dropped."""
+    prints = read_json(_fingerprints_file())
+    for k, v in new.items():
+        if _digest_of(v) is None and _digest_of(prints.get(k)) is not None and _matches(k, prints[k]):
+            continue
+        prints[k] = v
+    write_json(_fingerprints_file(), {k: v for k, v in prints.items() if os.path.exists(k)})
 
 
 def remember_pocl_cache(platform, since_ns: int) -> None:
@@ -278,24 +306,20 @@ def remember_pocl_cache(platform, since_ns: int) -> None:
         try:
             st = os.stat(path)
             if st.st_mtime_ns >= since_ns:
-                new[path] = [st.st_size, st.st_mtime_ns, _digest(path)]
+                new[path] = _stat_print(st, _digest(path))
         except OSError:
             continue
-    if not new:
-        return
-    try:
-        prints = read_json(_fingerprints_file())
-        prints.update(new)
-        prints = {k: v for k, v in prints.items() if os.path.exists(k)}
-        write_json(_fingerprints_file(), prints)
-    except OSError:
-        pass
+    if new:
+        try:
+            _merge_prints(new)
+        except OSError:
+            pass
 
 
 def repair_pocl_cache(platform, log=None) -> list:
     """Remove cache entries with an incomplete file, or with a file that no longer matches its
     fingerprint (PoCL rebuilds them); once per process and cache.  A file found sound is
-    remembered by its size and time, so a run reads only the files new or changed since the last
+    remembered by its size and times, so a run reads only the files new or changed since the last
     (a cache of thousands of entries cost every start a second).  Returns the removed entry folders."""
     root = pocl_cache_dir(platform)
     if root is None or root in _REPAIRED or not root.is_dir():
@@ -308,11 +332,16 @@ def repair_pocl_cache(platform, log=None) -> list:
             continue
         known = prints.get(path)
         if known is not None and _matches(path, known):
-            continue            # unchanged since it passed a self-test or this check: not read again
-        if (known is None or known[2] is None) and _sound(Path(path)):
+            try:                # unchanged since it passed a self-test or this check: not read again
+                fresh = _stat_print(os.stat(path), _digest_of(known))
+                if fresh != known:          # same content, new times (or an older print): refresh
+                    checked[path] = fresh
+            except OSError:
+                pass
+            continue
+        if _digest_of(known) is None and _sound(Path(path)):
             try:
-                st = os.stat(path)
-                checked[path] = [st.st_size, st.st_mtime_ns, None]
+                checked[path] = _stat_print(os.stat(path), None)
             except OSError:
                 pass
             continue
@@ -320,8 +349,7 @@ def repair_pocl_cache(platform, log=None) -> list:
         removed.append(entry)
     if checked or removed:      # remember what was checked, so that the next run reads only new files
         try:
-            prints.update(checked)
-            write_json(_fingerprints_file(), {k: v for k, v in prints.items() if os.path.exists(k)})
+            _merge_prints(checked)
         except OSError:
             pass
     if removed and log:
