@@ -354,3 +354,41 @@ def test_run_steps_report_each_row_once_as_the_callbacks_do():
     np.testing.assert_array_equal(run.state.x, ref.x)
     np.testing.assert_array_equal(run.state.nfev, ref.nfev)
     assert run.state.status == ref.status
+
+
+def _row_step(H, g, x, lo, hi, lam):
+    """One material's damped step written out (the definition the batched solve must equal)."""
+    free = ~(((x <= lo) & (g > 0)) | ((x >= hi) & (g < 0)))
+    d = np.zeros_like(x)
+    if free.any():
+        Hf = H[np.ix_(free, free)]
+        diag = np.maximum(np.diag(Hf), 1e-12 * np.diag(Hf).max())
+        d[free] = np.linalg.solve(Hf + lam * np.diag(diag), -g[free])
+    dec = 0.0
+    if free.any():
+        dec = max(g[free] @ np.linalg.lstsq(H[np.ix_(free, free)], g[free], rcond=1e-12)[0], 0.0)
+    return d, dec
+
+
+def test_batched_steps_equal_each_materials_own():
+    from brdfcl.optim.lm import lm_steps, newton_decrements
+    rng = np.random.default_rng(3)
+    m, k = 12, 6
+    J = rng.normal(size=(m, 20, k)) * np.exp(rng.normal(size=(m, 1, k)))
+    J[::3, :, 2] = J[::3, :, 3]                                  # singular free blocks (decrement only)
+    H = np.einsum("mni,mnj->mij", J, J)
+    g = rng.normal(size=(m, k))
+    lo, hi = -np.ones(k), np.ones(k)
+    x = rng.uniform(-0.5, 0.5, size=(m, k))
+    x[1, :2] = 1.0
+    g[1, :2] = -1.0                                              # held at the upper bound
+    x[2] = -1.0
+    g[2] = 1.0                                                   # every parameter held
+    lam = 10.0 ** rng.uniform(-4, 2, size=m)
+    d, dec = lm_steps(H, g, x, lo, hi, lam), newton_decrements(H, g, x, lo, hi)
+    assert np.all(d[1, :2] == 0) and np.all(d[2] == 0) and dec[2] == 0
+    for i in range(m):
+        d_i, dec_i = _row_step(H[i], g[i], x[i], lo, hi, lam[i])
+        np.testing.assert_allclose(d[i], d_i, rtol=1e-8, atol=1e-12 * np.abs(d_i).max(initial=1))
+        assert dec[i] == pytest.approx(dec_i, rel=1e-6, abs=1e-12)
+    assert lm_steps(H[:, :0, :0], g[:, :0], x[:, :0], lo[:0], hi[:0], lam).shape == (m, 0)   # nothing free

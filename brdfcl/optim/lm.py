@@ -59,21 +59,26 @@ def _on_free(H, g, free, pad):
 
 def newton_decrements(H, g, x, lo, hi):
     """g^T H^-1 g on each row's free set (m,): the loss decrease an undamped Gauss-Newton step
-    predicts.  H may be singular: the pseudo-inverse, singular values below 1e-12 of the largest
-    dropped (the held block is padded with the free block's largest diagonal, which no
-    eigenvalue of a positive semi-definite H is below, so it does not move that cut)."""
+    predicts (inf where it overflows: such a row keeps running).  H may be singular: the
+    pseudo-inverse, singular values below 1e-12 of the largest dropped (the held block is padded
+    with the free block's largest diagonal, which the largest eigenvalue of a symmetric matrix is
+    never below, so the padding does not move that cut)."""
+    if H.shape[-1] == 0:
+        return np.zeros(H.shape[0])
     free = _free(g, x, lo, hi)
     diag = np.diagonal(H, axis1=1, axis2=2)
     pad = np.maximum(np.max(np.where(free, np.abs(diag), 0.0), axis=1), 1e-300)
     Hm, gf = _on_free(H, g, free, pad)
     d = np.einsum("mij,mj->mi", np.linalg.pinv(Hm, rcond=1e-12, hermitian=True), gf)
     dec = np.maximum(np.einsum("mi,mi->m", gf, d), 0.0)
-    return np.where(free.any(axis=1) & np.isfinite(dec), dec, 0.0)
+    return np.where(free.any(axis=1), np.where(np.isnan(dec), np.inf, dec), 0.0)
 
 
 def lm_steps(H, g, x, lo, hi, lam):
     """Damped Gauss-Newton steps (m, k), one per row, with each row's active set removed:
     (H + lam diag(H)) d = -g on the free set, d = 0 on the held parameters."""
+    if H.shape[-1] == 0:
+        return np.zeros_like(g)
     free = _free(g, x, lo, hi)
     diag = np.where(free, np.diagonal(H, axis1=1, axis2=2), 0.0)
     dmax = np.max(diag, axis=1)
