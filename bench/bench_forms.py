@@ -30,6 +30,7 @@ import compare_published as cp  # noqa: E402
 from brdfcl import __version__  # noqa: E402
 from brdfcl.data.merl import list_database, read_merl  # noqa: E402
 from brdfcl.optim.fit import FitOptions, Fitter, load_batch  # noqa: E402
+from brdfcl.optim.forms import warm_start  # noqa: E402
 from brdfcl.optim.selection import select  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
@@ -40,13 +41,6 @@ FORMS = {"ggx": ("diffuse+diffraction+ggx", None),
 SETS = (("ggx",), ("gtr",), ("gtr-dielectric",), ("ggx", "gtr"), ("gtr", "gtr-dielectric"),
         ("ggx", "gtr", "gtr-dielectric"), ("ggx", "gtr", "gtr-hc", "gtr-dielectric"))
 RIVALS = ("sgd_bagher2012", "abc_low2012_microfacet_e2")
-
-
-def warm_values(source, fitter: Fitter) -> np.ndarray:
-    """Start values for ``fitter``'s model from fits of a nested form: shared parameters copied,
-    GTR's gamma at 2 (where GTR is GGX)."""
-    names = fitter.model.names
-    return np.array([[r.params.get(n, 2.0 if n.endswith(".gamma") else np.nan) for n in names] for r in source])
 
 
 def main(argv=None) -> int:
@@ -60,7 +54,7 @@ def main(argv=None) -> int:
     results, seconds = {}, {}
     for k, (_, warm) in FORMS.items():
         t = time.perf_counter()
-        start = warm_values(results[warm], fitters[k]) if warm else None
+        start = warm_start(results[warm], fitters[k].model) if warm else None
         results[k] = fitters[k].fit(names, full, coarse, start=start)
         seconds[k] = time.perf_counter() - t
         print(f"{k}: {seconds[k]:.1f} s", flush=True)

@@ -188,6 +188,8 @@ def _choose_forms(run: Runner, todo: list[str], opts: FitOptions, batch: int, fo
         for key in sorted(fitters, key=nesting_order):
             f = fitters[key]
             source = nested_source(key, fitted)
+            if source is not None and not all(r.success for r in fitted[source]):
+                source = None           # a failed contained fit is no start: this form searches on its own
             start = None if source is None else warm_start(fitted[source], f.model)
             fitted[key] = f.fit(names, full, coarse, log=run.log, start=start)
             for r in fitted[key]:

@@ -22,7 +22,7 @@ FRESNEL_FORMS = ("schlick", "dielectric")
 NESTED = {"gtr": ("ggx", {"gamma": 2.0})}
 """NDFs that contain another at a parameter value (GTR at gamma = 2 is GGX): a form with such an NDF
 is refined from the fits of the contained form with the same Fresnel (a warm start, no global
-search), which also makes its error never worse than that form's."""
+search): it starts at that form's optimum (a failed contained fit gives no start)."""
 
 
 def parse_forms(text: str) -> tuple[tuple[str, ...], tuple[str, ...]]:
