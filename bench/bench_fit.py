@@ -344,7 +344,7 @@ def report(recs, batch_seconds, paths, all_paths, args, out):
              "as one batch: its per-material time is the wall time of the whole batch until that "
              "material reached the error (launches are shared), so it is a conservative figure.", ""]
     # whole-set curves: mean over the materials every method ran of the best-so-far rmse_log at each time
-    common = set.intersection(*(set(d) for d in by.values()))
+    common = set.intersection(*(set(d) for d in by.values())) if by else set()
     for (method, setting), d in sorted(by.items()):
         grid = np.geomspace(0.05, max(max(r.rows[-1][0] for r in d.values()), 0.1), 200)
         curves = []
@@ -408,13 +408,14 @@ def report(recs, batch_seconds, paths, all_paths, args, out):
         lines += ["", f"Whole set: scipy {t_scipy:.0f} s for {n_s} materials ({per:.1f} s each, one at a "
                   f"time); brdfcl default {batch_seconds.get('default', float('nan')):.1f} s for "
                   f"{len(paths)} materials in one batch."]
-        per_db = {None: args.database_seconds} if args.database_seconds else {}
+        per_db = {"given by --database-seconds": args.database_seconds} if args.database_seconds else {}
         if not per_db and not args.report_only:
             per_db = database_seconds(all_paths, args, [None] + list(filter(None, args.devices.split(","))))
         if per_db:
             t_torch = [r.rows[-1][0] for r in torch_recs.values()]
+            runs = "as given" if args.database_seconds else f"median of {args.database_runs} runs in this process"
             lines += ["", f"Whole database ({len(all_paths)} materials), `brdfcl` default options, reading the "
-                      f"files included, median of {args.database_runs} runs in this process, against the peers' "
+                      f"files included, {runs}, against the peers' "
                       "per-material times extrapolated (one material after another):", "",
                       "| device | brdfcl (s) | scipy, extrapolated (s) | speed-up vs scipy | PyTorch, extrapolated (s) "
                       "| speed-up vs PyTorch |", "|---|---|---|---|---|---|"]

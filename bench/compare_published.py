@@ -97,7 +97,7 @@ def cpu_name() -> str:
 
 
 def _summary(specs: list[str], scores: dict, seconds: dict, rivals: tuple[str, ...]) -> list[str]:
-    names = sorted(scores)
+    names = sorted(n for n in scores if any(k in scores[n] for k in rivals))     # those with a published fit
     best = {n: min(scores[n][k] for k in rivals if k in scores[n]) for n in names}
     rows = []
     for s in specs:
@@ -142,7 +142,8 @@ def report(out: Path) -> str:
               + " | ".join(f"ratio {i + 1}" for i in range(len(specs))) + " |",
               "|---|" + "---|" * (2 * len(specs) + len(PUBLISHED))]
     for n in names:
-        two = min(scores[n][k] for k in ("sgd_bagher2012", "abc_low2012_microfacet_e2"))
+        two = min((scores[n][k] for k in ("sgd_bagher2012", "abc_low2012_microfacet_e2") if k in scores[n]),
+                  default=np.nan)
         cells_ = [f"{scores[n][k]:.4f}" for k in specs] + [f"{scores[n].get(k, np.nan):.4f}" for k in PUBLISHED]
         cells_ += [f"{scores[n][k] / two:.3f}" for k in specs]
         lines.append(f"| {n} | " + " | ".join(cells_) + " |")

@@ -28,7 +28,7 @@ class FitOptions:
     local_maxeval: int = 200        # per local search (lds) / whole search (mlsl, crs2: x 10)
     coarse_stride: int = 97         # coarse set: every n-th cell outside the peak region,
     coarse_peak_bins: int = 8       # every peak_stride-th cell with theta_h index below peak_bins
-    coarse_peak_stride: int = 20    # 20, not 5: 40% of the global stage's time, every proxy within 0.3%
+    coarse_peak_stride: int = 20    # 20, not 5: saves 40% of the global stage, every proxy within 0.3%
     lm: LMOptions = field(default_factory=LMOptions)
     preview_stride: int = 8         # > 1: LM first on every n-th cell of the table, to convergence,
     preview_final_iter: int = 10    # then at most this many iterations on the full table (1: off)
