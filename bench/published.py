@@ -27,6 +27,7 @@ channel, so no conversion is applied.
 from __future__ import annotations
 
 import csv
+from collections.abc import Callable
 from functools import cache
 from pathlib import Path
 
@@ -107,6 +108,22 @@ def _polar_angle(v: np.ndarray) -> np.ndarray:
     return 2.0 * np.arcsin(np.minimum(0.5 * np.linalg.norm(d, axis=1), 1.0))
 
 
+Specular = Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray], np.ndarray]
+
+
+def _microfacet(p: Params, kd: str, wi: np.ndarray, wo: np.ndarray, up: np.ndarray, specular: Specular) -> np.ndarray:
+    """The microfacet models' common form: kd / pi (per channel, column ``kd``) where both directions are
+    up, plus specular(wi, wo, h, cos theta_d) / (pi cos theta_i cos theta_o) where both are strictly above
+    the horizon (BBM's microfacet.h with the Cook normalisation pi)."""
+    out = np.zeros((3, wi.shape[0]))
+    out[:, up] = _rgb(p, kd) / np.pi
+    spec = up & (wi[:, 2] > 0) & (wo[:, 2] > 0)
+    wi, wo = wi[spec], wo[spec]
+    h, cos_d = _halfway(wi, wo)
+    out[:, spec] += specular(wi, wo, h, cos_d) / (np.pi * wi[:, 2] * wo[:, 2])
+    return out
+
+
 def _sgd(p: Params, wi: np.ndarray, wo: np.ndarray, up: np.ndarray) -> np.ndarray:
     """SGD model of Bagher et al. 2012 as BBM (bagher.h, ndf/sgd.h) evaluates it:
 
@@ -116,21 +133,7 @@ def _sgd(p: Params, wi: np.ndarray, wo: np.ndarray, up: np.ndarray) -> np.ndarra
     where t^p <= machine epsilon), G1(v) = 1 + Lambda (1 - exp(c (theta_v - theta0)^k)) for theta_v > theta0
     and 1 otherwise (the paper's fitted shadowing), F = F0 + (1 - F0)(1 - cos theta_d)^5 - F1 cos theta_d
     (the paper's modified Schlick Fresnel)."""
-    out = np.zeros((3, wi.shape[0]))
-    out[:, up] = _rgb(p, "rho_d") / np.pi
-    spec = up & (wi[:, 2] > 0) & (wo[:, 2] > 0)
-    wi, wo = wi[spec], wo[spec]
-    h, cos_d = _halfway(wi, wo)
-    ch = h[:, 2]
     alpha, power = _rgb(p, "alpha"), _rgb(p, "p")
-    tan2 = np.maximum(1.0 - ch * ch, 0.0) / (ch * ch)
-    t = alpha + tan2 / alpha
-    den = t**power
-    with np.errstate(divide="ignore", invalid="ignore"):
-        p22 = np.where(den > _EPS, np.exp(-t) / den, 0.0)
-    d = _rgb(p, "K_ap") * p22 / (np.pi * ch**4)
-    d = np.where(ch > 0, d, 0.0)
-
     lam, c, k, theta0 = _rgb(p, "Lambda"), _rgb(p, "c"), _rgb(p, "k"), _rgb(p, "theta0")
 
     def g1(v: np.ndarray) -> np.ndarray:
@@ -141,10 +144,19 @@ def _sgd(p: Params, wi: np.ndarray, wo: np.ndarray, up: np.ndarray) -> np.ndarra
             g = 1.0 + lam * (1.0 - np.exp(c * x**k))
         return np.where(above, g, 1.0)
 
-    f0, f1 = _rgb(p, "F0"), _rgb(p, "F1")
-    fresnel = f0 + (1.0 - f0) * (1.0 - cos_d) ** 5 - f1 * cos_d
-    out[:, spec] += _rgb(p, "rho_s") * d * g1(wi) * g1(wo) * fresnel / (np.pi * wi[:, 2] * wo[:, 2])
-    return out
+    def specular(wi: np.ndarray, wo: np.ndarray, h: np.ndarray, cos_d: np.ndarray) -> np.ndarray:
+        ch = h[:, 2]
+        tan2 = np.maximum(1.0 - ch * ch, 0.0) / (ch * ch)
+        t = alpha + tan2 / alpha
+        den = t**power
+        with np.errstate(divide="ignore", invalid="ignore"):
+            p22 = np.where(den > _EPS, np.exp(-t) / den, 0.0)
+        d = np.where(ch > 0, _rgb(p, "K_ap") * p22 / (np.pi * ch**4), 0.0)
+        f0, f1 = _rgb(p, "F0"), _rgb(p, "F1")
+        fresnel = f0 + (1.0 - f0) * (1.0 - cos_d) ** 5 - f1 * cos_d
+        return _rgb(p, "rho_s") * d * g1(wi) * g1(wo) * fresnel
+
+    return _microfacet(p, "rho_d", wi, wo, up, specular)
 
 
 def _abc_microfacet(p: Params, wi: np.ndarray, wo: np.ndarray, up: np.ndarray) -> np.ndarray:
@@ -155,18 +167,14 @@ def _abc_microfacet(p: Params, wi: np.ndarray, wo: np.ndarray, up: np.ndarray) -
     (paper eq. 15's ABC curve), G = min(1, 2 cos theta_h cos theta_i / wi.h, 2 cos theta_h cos theta_o / wo.h)
     (V-groove), F the dielectric Fresnel of index eta.  The paper's eq. 15 has no 1/pi; the published fits
     were made with it (BBM's note; they match MERL only with it).  kd, A per channel; B, C, eta shared."""
-    out = np.zeros((3, wi.shape[0]))
-    out[:, up] = _rgb(p, "kd") / np.pi
-    spec = up & (wi[:, 2] > 0) & (wo[:, 2] > 0)
-    wi, wo = wi[spec], wo[spec]
-    h, cos_d = _halfway(wi, wo)
-    ch = h[:, 2]
-    s = np.where(ch > 0, (1.0 + p["B"] * (1.0 - ch)) ** (-p["C"]), 0.0)
-    ih, oh = np.einsum("ij,ij->i", wi, h), np.einsum("ij,ij->i", wo, h)
-    g = np.minimum(1.0, np.minimum(2.0 * ch * wi[:, 2] / ih, 2.0 * ch * wo[:, 2] / oh))
-    fresnel = _fresnel_dielectric(p["eta"], cos_d)
-    out[:, spec] += _rgb(p, "A") * (s * g * fresnel / (np.pi * wi[:, 2] * wo[:, 2]))
-    return out
+    def specular(wi: np.ndarray, wo: np.ndarray, h: np.ndarray, cos_d: np.ndarray) -> np.ndarray:
+        ch = h[:, 2]
+        s = np.where(ch > 0, (1.0 + p["B"] * (1.0 - ch)) ** (-p["C"]), 0.0)
+        ih, oh = np.einsum("ij,ij->i", wi, h), np.einsum("ij,ij->i", wo, h)
+        g = np.minimum(1.0, np.minimum(2.0 * ch * wi[:, 2] / ih, 2.0 * ch * wo[:, 2] / oh))
+        return _rgb(p, "A") * (s * g * _fresnel_dielectric(p["eta"], cos_d))
+
+    return _microfacet(p, "kd", wi, wo, up, specular)
 
 
 def _abc_smooth(p: Params, wi: np.ndarray, wo: np.ndarray, up: np.ndarray) -> np.ndarray:
