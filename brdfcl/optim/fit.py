@@ -153,9 +153,7 @@ def _warm_start(objective: Objective, values: np.ndarray, n: int) -> StageResult
         raise ValueError(f"start values of shape {values.shape}: expected ({n}, {objective.model.n_params}), "
                          f"one row of every parameter of {objective.model.spec} per material")
     model = objective.model
-    lo = np.array([sl.param.lo for sl in model.slots])
-    hi = np.array([sl.param.hi for sl in model.slots])
-    values = np.clip(np.where(np.isfinite(values), values, model.defaults()[None, :]), lo, hi)
+    values = np.clip(np.where(np.isfinite(values), values, model.defaults()[None, :]), model.lo, model.hi)
     x = np.clip(objective.spaces.to_x(values), *objective.spaces.x_bounds)
     return StageResult(x, np.full(n, np.inf), np.arange(n), np.zeros(n, dtype=int), ["warm start"] * n,
                        np.ones(n, dtype=bool), "warm start")
