@@ -50,7 +50,8 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     paths = [Path(p) for p in list_database(args.data)]
     fitters = {k: Fitter(FitOptions(model=spec)) for k, (spec, _) in FORMS.items()}
-    names, full, coarse = load_batch([read_merl(p) for p in paths], fitters["ggx"])
+    tables = [read_merl(p) for p in paths]
+    names, full, coarse = load_batch(tables, fitters["ggx"])
     results, seconds = {}, {}
     for k, (_, warm) in FORMS.items():
         t = time.perf_counter()
@@ -61,7 +62,7 @@ def main(argv=None) -> int:
     specs = {k: f.model.spec for k, f in fitters.items()}
     fits = {specs[k]: {r.name: np.array([r.params[n] for n in fitters[k].model.names]) for r in results[k]}
             for k in FORMS}
-    scores = cp.score(paths, list(fits), fits)
+    scores = cp.score(tables, list(fits), fits)
     lines = [f"# Forms of the reflection lobe against the published fits ({datetime.date.today()})", "",
              f"Made by `python bench/bench_forms.py`. Data: MERL-proxy ({args.data}), {len(names)} materials. CPU: "
              f"{cp.cpu_name()}; brdfcl {__version__}; default device, default options. Forms: "

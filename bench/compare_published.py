@@ -20,16 +20,17 @@ from __future__ import annotations
 import csv
 import datetime
 import json
-import platform
 import time
 from pathlib import Path
 
 import numpy as np
 import published
+from bench_stages import cpu_name
 
 from brdfcl import __version__
-from brdfcl.data.geometry import table_geometry
+from brdfcl.data.geometry import DEFAULT_CUTOFF_DEG, table_geometry
 from brdfcl.data.merl import read_merl
+from brdfcl.device.engine import Engine, select_cells
 from brdfcl.model.lobes.cells import Cells
 from brdfcl.model.metrics import errors
 from brdfcl.optim.fit import FitOptions, Fitter, load_batch
@@ -38,29 +39,28 @@ PUBLISHED = ("sgd_bagher2012", "abc_low2012_microfacet_e2", "abc_low2012_smooth_
 SHORT = {"sgd_bagher2012": "SGD", "abc_low2012_microfacet_e2": "ABC-mf", "abc_low2012_smooth_e2": "ABC-sm"}
 
 
-def fit_database(paths: list[Path], spec: str) -> tuple[dict[str, np.ndarray], float]:
+def fit_database(tables: list, spec: str) -> tuple[dict[str, np.ndarray], float]:
     """brdfcl's fit of every table (one batch, default options): {material: parameter values},
-    and the wall time from reading the files to the last result."""
+    and the wall time of the fit (extraction and upload included, reading the files not)."""
     t0 = time.perf_counter()
     f = Fitter(FitOptions(model=spec))
-    names, full, coarse = load_batch([read_merl(p) for p in paths], f)
+    names, full, coarse = load_batch(tables, f)
     res = f.fit(names, full, coarse)
     seconds = time.perf_counter() - t0
-    model = f.model
-    return {r.name: np.array([r.params[n] for n in model.names]) for r in res}, seconds
+    return {r.name: np.array([r.params[n] for n in f.model.names]) for r in res}, seconds
 
 
-def score(paths: list[Path], specs: list[str], fits: dict[str, dict[str, np.ndarray]]) -> dict[str, dict[str, float]]:
-    """{material: {fit: rmse_log}} for brdfcl's models ``specs`` and every published model."""
+def score(tables: list, specs: list[str], fits: dict[str, dict[str, np.ndarray]]) -> dict[str, dict[str, float]]:
+    """{material: {fit: rmse_log}} for brdfcl's models ``specs`` and every published model, on the
+    cells a default fit uses."""
     g = table_geometry()
-    idx = Fitter(FitOptions(model=specs[0])).full_index
+    idx = select_cells(DEFAULT_CUTOFF_DEG)
     cells = Cells.from_geometry(g, idx)
     wi, wo, w, cw = g.wi[idx], g.wo[idx], g.weight[idx], cells.ci
-    engines = {s: Fitter(FitOptions(model=s, real="double")).engine for s in specs}
+    engines = {s: Engine(s, real="double") for s in specs}
     sets = {s: e.upload([], idx, np.zeros((0, e.model.n_channels, idx.size), e.dtype)) for s, e in engines.items()}
     out: dict[str, dict[str, float]] = {}
-    for p in paths:
-        table = read_merl(p)
+    for table in tables:
         m = table.brdf()[:, idx].astype(np.float64)
         row = {}
         for s in specs:
@@ -75,25 +75,16 @@ def score(paths: list[Path], specs: list[str], fits: dict[str, dict[str, np.ndar
 
 def compare(paths: list[Path], specs: list[str], out: Path, data_label: str) -> str:
     """Fit, score and write published.json (the scores and times), published.csv and published.md
-    into ``out``; returns the Markdown."""
+    into ``out``; returns the Markdown.  The files are read once, for every fit and the scores."""
+    tables = [read_merl(p) for p in paths]
     fits, seconds = {}, {}
     for s in specs:
-        fits[s], seconds[s] = fit_database(paths, s)
+        fits[s], seconds[s] = fit_database(tables, s)
         print(f"{s}: {len(paths)} materials fitted in {seconds[s]:.1f} s", flush=True)
-    run = {"specs": specs, "seconds": seconds, "scores": score(paths, specs, fits), "data": data_label,
+    run = {"specs": specs, "seconds": seconds, "scores": score(tables, specs, fits), "data": data_label,
            "cpu": cpu_name(), "date": str(datetime.date.today()), "version": __version__}
     (out / "published.json").write_text(json.dumps(run, indent=1))
     return report(out)
-
-
-def cpu_name() -> str:
-    try:
-        for line in open("/proc/cpuinfo"):
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or platform.machine()
 
 
 def _summary(specs: list[str], scores: dict, seconds: dict, rivals: tuple[str, ...]) -> list[str]:
@@ -123,7 +114,8 @@ def report(out: Path) -> str:
     lines = [f"# brdfcl against the published fits ({run['date']})", "",
              f"Made by `python bench/bench_fit.py --published` (bench/compare_published.py). Data: {run['data']}, "
              f"{len(names)} materials. CPU: {run['cpu']}; brdfcl {run['version']}, default options, default "
-             "device; each model's database fitted in one batch, reading included.", "",
+             "device; each model's database fitted in one batch (time: extraction, upload and fit; the files "
+             "read once beforehand).", "",
              "Score: rmse_log, the solid-angle weighted RMS of ln(1 + f cos theta_i) against the data's, over the "
              "cells inside the 80 degree cut-off (Löw et al.'s E2 with MERL's bin weights), one function for every "
              "fit; brdfcl's fits evaluated in float64. Published fits: SGD (Bagher et al. 2012), ABC "
