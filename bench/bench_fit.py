@@ -25,6 +25,7 @@ import csv
 import datetime
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -327,6 +328,39 @@ def database_seconds(all_paths, args, devices):
     return out
 
 
+@dataclass
+class Reach:
+    """How one method's runs reach a rival's final errors, on the materials both ran."""
+
+    times: list          # per material that reached it: seconds until it did
+    speedups: list       # the rival's own time to that error over this method's
+    final_ratio: list    # per material in common: this method's final rmse_log over the rival's
+
+    def __bool__(self) -> bool:
+        return bool(self.final_ratio)
+
+    def __str__(self) -> str:
+        """The table cells: materials reaching it, median time, median speed-up."""
+        med = lambda v: np.median(v) if v else float("nan")  # noqa: E731
+        return f"{len(self.times)}/{len(self.final_ratio)} | {med(self.times):.2f} | {med(self.speedups):.1f}x"
+
+
+def reaching(runs: dict, rival: dict) -> Reach:
+    """When each run of ``runs`` (material -> Recorder) reached the final rmse_log of ``rival``'s run
+    of the same material (within 0.1%)."""
+    out = Reach([], [], [])
+    for name, r in runs.items():
+        if name not in rival:
+            continue
+        target = rival[name].rows[-1][1] * (1 + 1e-3)
+        t_m = time_to(r, target)
+        out.final_ratio.append(r.rows[-1][1] / rival[name].rows[-1][1])
+        if np.isfinite(t_m):
+            out.times.append(t_m)
+            out.speedups.append(time_to(rival[name], target) / t_m)
+    return out
+
+
 def report(recs, batch_seconds, paths, all_paths, args, out):
     import matplotlib
     matplotlib.use("Agg")
@@ -372,21 +406,9 @@ def report(recs, batch_seconds, paths, all_paths, args, out):
                   "| method | setting | materials reaching it | median time (s) | median speed-up vs scipy | "
                   "final rmse_log / scipy's (median) |", "|---|---|---|---|---|---|"]
         for (method, setting), d in sorted(by.items()):
-            ts, sp, fr = [], [], []
-            for name, r in d.items():
-                if name not in scipy:
-                    continue
-                target = scipy[name].rows[-1][1] * (1 + 1e-3)
-                t_s = time_to(scipy[name], target)
-                t_m = time_to(r, target)
-                fr.append(r.rows[-1][1] / scipy[name].rows[-1][1])
-                if np.isfinite(t_m):
-                    ts.append(t_m)
-                    sp.append(t_s / t_m)
-            n = len(fr)
-            if n:
-                lines.append(f"| {method} | {setting} | {len(ts)}/{n} | {np.median(ts) if ts else float('nan'):.2f} | "
-                             f"{np.median(sp) if sp else float('nan'):.1f}x | {np.median(fr):.3f} |")
+            reach = reaching(d, scipy)
+            if reach:
+                lines.append(f"| {method} | {setting} | {reach} | {np.median(reach.final_ratio):.3f} |")
         lines += ["", "Whole set: time until every material has reached the scipy fit's final rmse_log "
                   "(brdfcl: one batch, so the latest material; scipy and PyTorch: one material after "
                   "another, so the sum):", "",
@@ -432,19 +454,9 @@ def report(recs, batch_seconds, paths, all_paths, args, out):
                   "| method | setting | materials reaching it | median time (s) | median speed-up vs PyTorch |",
                   "|---|---|---|---|---|"]
         for (method, setting), d in sorted(by.items()):
-            ts, sp = [], []
-            for name, r in d.items():
-                if name not in torch_recs:
-                    continue
-                target = torch_recs[name].rows[-1][1] * (1 + 1e-3)
-                t_m = time_to(r, target)
-                if np.isfinite(t_m):
-                    ts.append(t_m)
-                    sp.append(time_to(torch_recs[name], target) / t_m)
-            n = sum(1 for name in d if name in torch_recs)
-            if n:
-                lines.append(f"| {method} | {setting} | {len(ts)}/{n} | {np.median(ts) if ts else float('nan'):.2f} | "
-                             f"{np.median(sp) if sp else float('nan'):.1f}x |")
+            reach = reaching(d, torch_recs)
+            if reach:
+                lines.append(f"| {method} | {setting} | {reach} |")
     lines += ["", "![error against time](fit_vs_time.png)", "",
               "Curves and samples: `fit_curves.csv` (method, setting, material, seconds, rmse_log, rmse_l2, "
               "rmse_cbrt; brdfcl samples carry the fit metric during the run and all three at the end)."]
