@@ -312,12 +312,12 @@ def main(argv=None):
 def database_seconds(all_paths, args, devices):
     """Median wall time of `brdfcl fit-all`'s fit of every file (reading included), per device
     (None: the default device), keyed by the device's description."""
+    from bench_stages import device_name
+
     from brdfcl.app.run import fit_all
-    from brdfcl.device.platforms import pick_device
     out = {}
     for dev in devices:
-        _, d = pick_device(dev)
-        name = f"{d.platform.version.split(' Linux')[0]} ({d.name.strip()})"
+        name = device_name(dev)
         times = []
         for _ in range(args.database_runs):
             t = time.perf_counter()

@@ -101,10 +101,11 @@ def one_run(paths) -> dict:
     return out
 
 
-def device_name() -> str:
-    """The device a default fit runs on (BRDFCL_DEVICE honoured), with its OpenCL platform."""
+def device_name(selector: str | None = None) -> str:
+    """The device ``selector`` picks (None: the one a default fit runs on, BRDFCL_DEVICE honoured),
+    with its OpenCL platform."""
     from brdfcl.device.platforms import pick_device
-    p, d = pick_device()
+    p, d = pick_device(selector)
     return f"{d.name.strip()} ({p.version.strip()})"
 
 
