@@ -9,7 +9,7 @@ import nlopt
 import numpy as np
 import pytest
 
-from brdfcl.optim.lockstep import BIG, Problem, run_lockstep
+from brdfcl.optim.lockstep import BIG, DETERMINISTIC, Problem, run_lockstep
 
 K = 3
 LO, HI = np.full(K, -3.0), np.full(K, 3.0)
@@ -134,16 +134,21 @@ def assert_same_as_alone(algos, fgs, x0s, seeds, outcomes):
         assert oc.status == status, (i, algo)
 
 
-@pytest.mark.parametrize("algo", list(ALGOS))
-def test_each_problem_as_if_alone(algo):
+def deterministic(algo):
+    return make_opt(algo).get_algorithm() in DETERMINISTIC
+
+
+@pytest.mark.parametrize("algo,driver", [(a, d) for a in ALGOS for d in ("auto", "threads", "greenlets")
+                                         if d != "greenlets" or deterministic(a)])
+def test_each_problem_as_if_alone(algo, driver):
     """Four problems of one algorithm in lockstep end exactly (bitwise: same x, f, evaluations,
-    status) where nlopt alone ends on each, with the same settings and seed.  Catches results
-    handed to the wrong optimiser, a shared random state between threads (the stochastic
-    algorithms), and a seed not applied."""
+    status) where nlopt alone ends on each, with the same settings and seed, on either driver.
+    Catches results handed to the wrong optimiser, a shared random state between threads (the
+    stochastic algorithms), and a seed not applied."""
     fgs, centres, x0s = case(4)
     seeds = [11, 12, 13, 14]
     ev = Evaluate(fgs)
-    out = within(30, run_lockstep, [Problem(make_opt(algo), x0, s) for x0, s in zip(x0s, seeds)], ev)
+    out = within(30, run_lockstep, [Problem(make_opt(algo), x0, s) for x0, s in zip(x0s, seeds)], ev, driver)
     assert_same_as_alone([algo] * 4, fgs, x0s, seeds, out)
     for oc, fg in zip(out, fgs):
         assert oc.f == fg(oc.x)[0]                             # the reported point has that value
@@ -151,6 +156,31 @@ def test_each_problem_as_if_alone(algo):
     if algo in ("LD_LBFGS", "LN_BOBYQA"):                      # the local ones do converge here
         for oc, c in zip(out, centres):
             np.testing.assert_allclose(oc.x, c, atol=1e-3)
+
+
+class CountThreads(Evaluate):
+    """Evaluate that records the number of live threads at each call."""
+
+    def __call__(self, xs, need, ids):
+        self.threads = max(getattr(self, "threads", 0), threading.active_count())
+        return super().__call__(xs, need, ids)
+
+
+@pytest.mark.parametrize("algos,driver", [(["LD_LBFGS", "LN_BOBYQA", "LD_MMA", "LN_NELDERMEAD"], "greenlets"),
+                                          (["LD_LBFGS", "GN_CRS2_LM"], "threads")])
+def test_auto_driver_threads_only_for_random_algorithms(algos, driver):
+    """``auto`` runs deterministic algorithms on greenlets in the caller's thread (no thread per
+    optimiser: issue 18's host time) and any batch with a random one on threads."""
+    fgs, _, x0s = case(len(algos))
+    ev = CountThreads(fgs)
+    before = threading.active_count()
+    within(30, run_lockstep, [Problem(make_opt(a), x0, 1) for a, x0 in zip(algos, x0s)], ev)
+    assert ev.threads - before == (1 if driver == "greenlets" else 1 + len(algos))   # 1: within's own
+
+
+def test_unknown_driver_is_refused():
+    with pytest.raises(ValueError, match="lockstep driver 'fibres'"):
+        run_lockstep([], Evaluate([]), "fibres")
 
 
 def test_seed_matters_for_stochastic_algorithms():
@@ -241,10 +271,13 @@ def test_failing_optimiser_does_not_hang_the_others():
     assert_same_as_alone(["LN_BOBYQA", "LD_LBFGS"], [fgs[0], fgs[2]], x0s[[0, 2]], [1, 3], [out[0], out[2]])
 
 
-@pytest.mark.parametrize("at_call", [1, 4])
-def test_raising_evaluate_stops_everyone_and_reraises(at_call):
+@pytest.mark.parametrize("at_call,algos", [
+    (1, ["LD_LBFGS", "LN_BOBYQA", "GN_CRS2_LM", "LN_NELDERMEAD", "LD_MMA"]),
+    (4, ["LD_LBFGS", "LN_BOBYQA", "GN_CRS2_LM", "LN_NELDERMEAD", "LD_MMA"]),
+    (4, ["LD_LBFGS", "LN_BOBYQA", "LD_LBFGS", "LN_NELDERMEAD", "LD_MMA"])])      # on greenlets
+def test_raising_evaluate_stops_everyone_and_reraises(at_call, algos):
     """An exception from the batched evaluation (e.g. a failed launch) reaches the caller promptly,
-    with every optimiser thread stopped."""
+    with every optimiser stopped (and every thread ended)."""
     fgs, _, x0s = case(5, 4)
     calls = [0]
 
@@ -254,8 +287,7 @@ def test_raising_evaluate_stops_everyone_and_reraises(at_call):
             raise RuntimeError("launch failed")
         return Evaluate(fgs)(xs, need, ids)
     before = threading.active_count()
-    problems = [Problem(make_opt(a), x0, i) for i, (a, x0) in
-                enumerate(zip(["LD_LBFGS", "LN_BOBYQA", "GN_CRS2_LM", "LN_NELDERMEAD", "LD_MMA"], x0s))]
+    problems = [Problem(make_opt(a), x0, i) for i, (a, x0) in enumerate(zip(algos, x0s))]
     with pytest.raises(RuntimeError, match="launch failed"):
         within(10, run_lockstep, problems, evaluate)
     assert calls[0] == at_call                                  # nothing evaluated after the failure
@@ -265,20 +297,22 @@ def test_raising_evaluate_stops_everyone_and_reraises(at_call):
     assert threading.active_count() == before
 
 
-def test_malformed_evaluation_stops_everyone_and_reraises():
+@pytest.mark.parametrize("algo", ["GN_CRS2_LM", "LD_LBFGS"])
+def test_malformed_evaluation_stops_everyone_and_reraises(algo):
     """An answer of the wrong shape fails inside an optimiser's objective; with CRS2 (which keeps
-    calling after a stop) that used to leave the lock held and hang."""
+    calling after a stop) that used to leave the lock held and hang.  LBFGS: the same on greenlets."""
     fgs, _, x0s = case(3, 5)
 
     def evaluate(xs, need, ids):
         f, g = Evaluate(fgs)(xs, need, ids)
         return np.stack([f, f], axis=1), g                     # (n, 2) instead of (n,)
-    problems = [Problem(make_opt("GN_CRS2_LM"), x0, i) for i, x0 in enumerate(x0s)]
+    problems = [Problem(make_opt(algo), x0, i) for i, x0 in enumerate(x0s)]
     with pytest.raises(ValueError):
         within(10, run_lockstep, problems, evaluate)
 
 
-def test_many_problems_finish():
+@pytest.mark.parametrize("driver", ["greenlets", "threads"])
+def test_many_problems_finish(driver):
     """200 problems in one run: all at their own optimum, the first batch holds all 200."""
     n = 200
     rng = np.random.default_rng(5)
@@ -289,7 +323,7 @@ def test_many_problems_finish():
     ev = Evaluate([quad(c) for c in centres])
     problems = [Problem(make_opt("LD_LBFGS" if i % 2 else "LN_BOBYQA"), np.zeros(K), i) for i in range(n)]
     t0 = time.perf_counter()
-    out = within(60, run_lockstep, problems, ev)
+    out = within(60, run_lockstep, problems, ev, driver)
     assert time.perf_counter() - t0 < 30
     assert len(out) == n and all(oc is not None for oc in out)
     assert len(ev.batches[0][0]) == n
