@@ -1,7 +1,8 @@
 """Fitting a model to a whole database at once: the pipeline of stages.
 
 tables -> cell sets on the device (full table and a coarse subset) -> `global_search` on the
-coarse set -> `pick_starts` on the full table -> Levenberg-Marquardt on the full table (`refine`)
+coarse set -> `pick_starts` on the preview cells (every n-th cell of the table; the full table
+without a preview) -> Levenberg-Marquardt on the preview, then on the full table (`refine`)
 -> `evaluate` and `assess` each material as it finishes -> `FitResult`.  Every stage batches all
 materials into each launch and returns a `StageResult`.  The loss and its penalties are
 brdfcl.optim.objective, the parameter spaces brdfcl.optim.spaces, the global search's methods
@@ -126,12 +127,13 @@ class Fitter:
         batch = _Batch(self, names, full_data, t.full, on_result, t0)
         if start_values is None:
             found = global_search(objective, t.coarse, names=names, options=o, penalty=o.ct_peak_global, log=log)
-            start = pick_starts(objective, t.full, found, n_materials=len(names))
+            # ranking a few starts needs no full table: every n-th cell (1/8 of the launch)
+            start = pick_starts(objective, t.preview or t.full, found, n_materials=len(names))
         else:
             found = start = _warm_start(objective, np.asarray(start_values, dtype=np.float64), len(names))
         loss0 = start.fun
         if not np.isfinite(loss0).all():          # defaults taken: their loss was not evaluated
-            loss0 = objective.loss(t.full, start.x, np.arange(len(names)))
+            loss0 = objective.loss(t.preview or t.full, start.x, np.arange(len(names)))
         batch.started(found, loss0)
         x0, local, previewed = start.x, o, None
         if t.preview is not None:       # multi-resolution: converge on every n-th cell first
@@ -210,7 +212,8 @@ class _Batch:
         return time.perf_counter() - self.t0
 
     def started(self, found: StageResult, loss: np.ndarray) -> None:
-        """The global stage is over: ``found`` its result, ``loss`` the starts' on the full table."""
+        """The global stage is over: ``found`` its result, ``loss`` the starts' (on the preview cells:
+        weighted to estimate the full table's)."""
         self.t_global = self.now()
         self.global_nfev = found.nfev
         for i, h in enumerate(self.history):
