@@ -111,3 +111,39 @@ def test_fit_all_exports_what_is_asked(demo_db, tmp_path):
     assert rep.resumed == ["synth-mirror"] and not rep.results and (out / "synth-mirror.brdf").is_file()
     with pytest.raises(ValueError, match="unknown export png; valid: merl, brdf_explorer"):
         fit_all([path], out, model="diffuse+ggx", export=["png"])
+
+
+def test_summary_reads_each_result_once_and_again_when_it_changes(tmp_path, monkeypatch):
+    """summary.csv is rewritten after every fit from the folder's NAME.json files: with the writer's
+    cache an unchanged file is not parsed again (80 fits read 3240 files before), a replaced one
+    (new inode, as every result is written) is, and the summary shows its new content."""
+    import json
+
+    from brdfcl.report.output import read_results
+    from brdfcl.report.writers.summary import write_summary
+
+    def doc(name, rmse):
+        return {"material": name, "model": "diffuse", "metric": "log", "seconds": 1.0, "evaluations": 3,
+                "errors": {"rmse_log": rmse, "rmse_l2": 0.0, "rmse_cbrt": 0.0, "rel_rmse": 0.0},
+                "status": "ok", "params": {"diffuse.rho_r": {"value": 0.5}}}
+
+    def put(name, rmse):
+        tmp = tmp_path / f"{name}.tmp"
+        tmp.write_text(json.dumps(doc(name, rmse)))
+        os.replace(tmp, tmp_path / f"{name}.json")
+    parsed = []
+    real_loads = json.loads
+    monkeypatch.setattr(json, "loads", lambda s: parsed.append(1) or real_loads(s))
+    cache: dict = {}
+    put("a", 0.25)
+    put("b", 0.5)
+    write_summary(tmp_path, cache)
+    assert len(parsed) == 2
+    write_summary(tmp_path, cache)
+    assert len(parsed) == 2                                    # nothing read again
+    put("b", 0.125)                                            # same size, new inode
+    put("c", 0.75)
+    text = write_summary(tmp_path, cache).read_text()
+    assert len(parsed) == 4                                    # b again, c new
+    assert ",0.125," in text and ",0.5," not in text and text.count("\n") == 4
+    assert read_results(tmp_path) == read_results(tmp_path, cache)

@@ -106,12 +106,21 @@ def result_document(res: Any, model: Model, extra: dict | None = None, options: 
     return doc
 
 
-def read_results(out_dir: str | Path) -> list[dict]:
-    """Every readable NAME.json in out_dir (other JSON files are ignored)."""
+def read_results(out_dir: str | Path, cache: dict | None = None) -> list[dict]:
+    """Every readable NAME.json in out_dir (other JSON files are ignored).  ``cache``: a dict kept
+    between calls; a file whose size, modification time and inode are unchanged is not read again
+    (a folder rewritten after every fit would otherwise be re-read whole each time)."""
     docs = []
     for p in sorted(Path(out_dir).glob("*.json")):
         try:
-            d = json.loads(p.read_text())
+            st = p.stat()
+            key = (st.st_size, st.st_mtime_ns, st.st_ino)
+            if cache is not None and p in cache and cache[p][0] == key:
+                d = cache[p][1]
+            else:
+                d = json.loads(p.read_text())
+                if cache is not None:
+                    cache[p] = (key, d)
         except (OSError, ValueError):
             continue
         if isinstance(d, dict) and "material" in d and "params" in d:

@@ -22,9 +22,9 @@ OPTION_COLUMNS = ["options", "real", "cutoff_deg", "fixed", "seed", "ct_peak", "
                   "select_lobes", "brdfcl_version"]
 
 
-def write_summary(out_dir: str | Path) -> Path:
-    """summary.csv from every NAME.json in out_dir; returns its path."""
-    docs = read_results(out_dir)
+def write_summary(out_dir: str | Path, cache: dict | None = None) -> Path:
+    """summary.csv from every NAME.json in out_dir; returns its path.  ``cache``: see read_results."""
+    docs = read_results(out_dir, cache)
     pnames: list[str] = []
     for d in docs:
         pnames += [k for k in d["params"] if k not in pnames]
@@ -61,11 +61,14 @@ class SummaryCsv(Writer):
 
     name = "summary"
 
+    def __init__(self) -> None:
+        self._read: dict[str, dict] = {}   # per job's folder: NAME.json files already read (read_results)
+
     def applies_to(self, job: Job) -> bool:
         return job.kind == FIT
 
     def write(self, job: Job, item: Item) -> None:
-        write_summary(job.out)
+        write_summary(job.out, self._read.setdefault(str(job.out), {}))
 
     def finish(self, job: Job, items: list[Item]) -> Path:
-        return write_summary(job.out)
+        return write_summary(job.out, self._read.pop(str(job.out), None))
