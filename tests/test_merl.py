@@ -5,7 +5,7 @@ import tracemalloc
 import numpy as np
 import pytest
 
-from brdfcl.data.merl import FILE_SIZE, N_CELLS, SCALE, MerlError, read_database, read_merl, write_merl
+from brdfcl.data.merl import FILE_SIZE, N_CELLS, SCALE, MerlError, read_database, read_merl, read_merl_at, write_merl
 
 
 def test_proxy_round_trip_is_identical(proxy_pair, tmp_path):
@@ -62,6 +62,44 @@ def test_bad_files_name_file_and_problem(tmp_path, content, message):
     with pytest.raises(MerlError) as e:
         read_merl(p)
     assert str(p) in str(e.value) and message in str(e.value)
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_values_at_cells_equal_the_tables(tmp_path, dtype):
+    """read_merl_at (what fit-all reads through, one reused buffer) gives the table's values at
+    each index set, missing cells (negative, NaN, inf in any channel) NaN, in float32 or float64."""
+    rng = np.random.default_rng(3)
+    raw = rng.uniform(0.0, 300.0, size=(3, N_CELLS))
+    raw[0, 5], raw[1, 7], raw[2, 9] = -1.0, np.nan, np.inf
+    with open(tmp_path / "m.binary", "wb") as f:
+        f.write(np.array([90, 90, 180], "<i4").tobytes() + raw.astype("<f8").tobytes())
+    t = read_merl(tmp_path / "m.binary")
+    sets = [np.arange(0, 50), np.sort(rng.choice(N_CELLS, 1000, replace=False))]
+    outs = [np.zeros((3, ix.size), dtype) for ix in sets]
+    buffer = np.full(3 * N_CELLS, 7.0)
+    for _ in range(2):                                         # the buffer reused
+        assert read_merl_at(tmp_path / "m.binary", sets, outs, buffer) == "m"
+        for o, ix in zip(outs, sets):
+            want = t.brdf_at(ix, dtype)
+            np.testing.assert_array_equal(np.isnan(o), np.isnan(want))
+            np.testing.assert_allclose(o, want, rtol=1e-7 if dtype == np.float32 else 1e-15)
+    assert np.isnan(outs[0][:, [5, 7, 9]]).sum() == 3
+    with pytest.raises(ValueError, match="read buffer"):
+        read_merl_at(tmp_path / "m.binary", sets, outs, np.empty(10))
+
+
+def test_all_missing_in_the_fitted_cells_is_an_error(tmp_path):
+    brdf = np.full((3, N_CELLS), np.nan)
+    brdf[:, -1] = 0.5                                          # valid outside the cells read
+    write_merl(tmp_path / "x.binary", brdf)
+    outs = [np.empty((3, 100), np.float32)]
+    with pytest.raises(MerlError, match=r"x.binary: every cell is missing within the fitted region"):
+        read_merl_at(tmp_path / "x.binary", [np.arange(100)], outs)
+    brdf[1, 3] = 0.5
+    brdf[0, 4] = 0.5                                           # each cell still missing in a channel
+    write_merl(tmp_path / "x.binary", brdf)
+    with pytest.raises(MerlError, match="every cell is missing"):
+        read_merl_at(tmp_path / "x.binary", [np.arange(100)], outs)
 
 
 def test_all_missing_is_an_error(tmp_path):

@@ -12,7 +12,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from brdfcl.data.merl import MerlError, list_database, read_merl
+from brdfcl.data.merl import MerlError, list_database, read_merl, read_merl_at
 from brdfcl.data.readers import find_measurements
 
 
@@ -46,9 +46,17 @@ class FileReader:
         self.path = path
 
     def __call__(self):
+        self._present()
+        return read_merl(self.path)
+
+    def values_at(self, indices, outs, buffer=None) -> str:
+        """The file's BRDF at each index set into ``outs``, its name returned (brdfcl.data.merl.read_merl_at)."""
+        self._present()
+        return read_merl_at(self.path, indices, outs, buffer)
+
+    def _present(self) -> None:
         if not os.path.exists(self.path):
             raise MerlError(f"{self.path}: file disappeared before it could be read")
-        return read_merl(self.path)
 
     def __str__(self):
         return self.path

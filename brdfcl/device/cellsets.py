@@ -8,6 +8,7 @@ multiple of the vector width and split into blocks under the device's largest al
 from __future__ import annotations
 
 import os
+import threading
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any
@@ -16,6 +17,7 @@ import numpy as np
 import pyopencl as cl
 
 from brdfcl.data.geometry import DEFAULT_CUTOFF_DEG, table_geometry
+from brdfcl.data.merl import N_CELLS
 from brdfcl.model.lobes.cells import Cells
 
 _CPUS = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
@@ -74,16 +76,23 @@ def select_cells(cutoff_deg=DEFAULT_CUTOFF_DEG, stride=1, offset=0):
 def extract(tables, indices, dtype=np.float32, on_error=None, workers=READ_WORKERS):
     """Read each table once and keep its values at each index set: (names, [(n_mat, C, n_i)]).
 
-    ``tables`` yields MerlTable objects or callables returning one (files are read lazily, by
-    ``workers`` threads: reading and subsetting a file release the GIL, so the cores read in parallel);
-    a table that raises is reported to ``on_error(item, exc)`` and skipped (re-raised if None).
-    Each table's values go straight into the result arrays: no list of parts to stack."""
+    ``tables`` yields MerlTable objects, callables returning one, or readers with a
+    ``values_at(indices, outs, buffer)`` method (brdfcl.data.inputs.FileReader: the file's values go
+    straight to the result, through one reusable read buffer per thread); files are read lazily,
+    by ``workers`` threads (reading and subsetting a file release the GIL, so the cores read in
+    parallel).  A table that raises is reported to ``on_error(item, exc)`` and skipped (re-raised if
+    None)."""
     items = list(tables)
     out = [np.empty((len(items), 3, idx.size), dtype) for idx in indices]       # MERL: 3 channels
+    local = threading.local()
 
     def one(k):
         item = items[k]
         try:
+            if hasattr(item, "values_at"):
+                if not hasattr(local, "buffer"):
+                    local.buffer = np.empty(3 * N_CELLS)
+                return item.values_at(indices, [o[k] for o in out], local.buffer), None
             t = item() if callable(item) else item
             for o, idx in zip(out, indices):
                 t.brdf_at(idx, dtype, out=o[k])
