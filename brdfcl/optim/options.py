@@ -26,9 +26,9 @@ class FitOptions:
     n_candidates: int = 256         # lds: Sobol candidates per material
     n_starts: int = 4               # lds: local searches per material
     local_maxeval: int = 200        # per local search (lds) / whole search (mlsl, crs2: x 10)
-    coarse_stride: int = 97         # coarse set: every n-th cell outside the peak region,
+    coarse_stride: int = 300        # coarse set: every n-th cell outside the peak region,
     coarse_peak_bins: int = 8       # every peak_stride-th cell with theta_h index below peak_bins
-    coarse_peak_stride: int = 20    # 20, not 5: saves 40% of the global stage, every proxy within 0.3%
+    coarse_peak_stride: int = 40    # 5528 cells; 40 and 300, not 5 and 97: README "Fitting a database"
     lm: LMOptions = field(default_factory=LMOptions)
     preview_stride: int = 8         # > 1: LM first on every n-th cell of the table, to convergence,
     preview_final_iter: int = 10    # then at most this many iterations on the full table (1: off)
