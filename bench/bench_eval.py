@@ -62,6 +62,7 @@ def median_time(fn, repeat):
 
 
 TRANSCENDENTALS = ("exp", "log", "log1p", "sqrt", "erfc", "pow")
+MEASURED = TRANSCENDENTALS + ("div",)    # operations timed against the FMA (a division is not one FMA slot)
 
 
 def roof_source(vw, gpu=False):
@@ -111,10 +112,12 @@ __kernel void fma_peak(__global float *out, const int iters) {{
 """
     arg = {"exp": "-{x}", "log": "{x} + 1.0f", "log1p": "{x}", "sqrt": "{x} + 0.5f", "erfc": "{x}",
            "pow": "{x} + 0.5f, b"}
-    for fn in TRANSCENDENTALS:
+    step = {fn: f"{{x}} = {fn}({a}) * b + c;" for fn, a in arg.items()}
+    step["div"] = "{x} = b / ({x} + 2.0f) * b + c;"
+    for fn in MEASURED:
         src += f"""__kernel void cost_{fn}(__global float *out, const int iters) {{
     const int g = get_global_id(0);
-{loop(lambda x, fn=fn: f"{x} = {fn}({arg[fn].format(x=x)}) * b + c;")}
+{loop(lambda x, fn=fn: step[fn].format(x=x))}
 }}
 """
     return src
@@ -141,7 +144,7 @@ def roofline(eng, repeat):
     t_fma = timed("fma_peak", out, np.int32(iters))
     flops = nw * iters * 8 * vw * 2 / t_fma
     cost = {fn: max(timed(f"cost_{fn}", out, np.int32(iters // 8)) * 8 / t_fma - 1.0, 0.0)
-            for fn in TRANSCENDENTALS}
+            for fn in MEASURED}
     return bw, flops, cost
 
 
@@ -201,24 +204,27 @@ def compare_lines(configs, n_mat, repeat):
     return lines
 
 
-_OPS = re.compile(r"(?<![eE])[-+*/](?!=)|\b(?:fmin|fmax)\b")
+_OPS = re.compile(r"(?<![eE])[-+*](?!=)|\b(?:fmin|fmax)\b")
+_DIV = re.compile(r"/(?!=)")
+_COMMENT = re.compile(r"/\*.*?\*/|//[^\n]*", re.S)
 _TRANS = re.compile(r"\b(exp|log|log1p|sqrt|cbrt|erfc|pow)\s*\(")
 
 
 def op_count(source, kernel="grad"):
-    """(arithmetic ops, {builtin: calls}) per cell in a kernel's loop, from the generated source.
+    """(arithmetic ops, {builtin or 'div': calls}) per cell in a kernel's loop, from the generated
+    source (comments removed).
 
     Inline functions are expanded once per call site.  An estimate: compilers fold some
     operations and the transcendentals cost many instructions each."""
-    funcs = {m.group(1): m.group(2) for m in re.finditer(
-        r"inline \w+ (\w+)\([^)]*\)\s*\{(.*?)\n\}", source, re.S)}
     body = source.split(f"void {kernel}(", 1)[1]
-    body = body.split("for (int v = v0", 1)[1].split("/* work-group reduction", 1)[0]
+    body = _COMMENT.sub(" ", body.split("for (int v = v0", 1)[1].split("/* work-group reduction", 1)[0])
+    funcs = {m.group(1): m.group(2) for m in re.finditer(
+        r"inline \w+ (\w+)\([^)]*\)\s*\{(.*?)\n\}", _COMMENT.sub(" ", source), re.S)}
 
     def count(text, depth=0):
         text = re.sub(r"\[[^\]]*\]|\(size_t\)|\d+\.?\d*e[-+]\d+", "", text)
         ops = len(_OPS.findall(text))
-        tr: dict = {}
+        tr: dict = {"div": len(_DIV.findall(text))} if _DIV.search(text) else {}
         for fn in _TRANS.findall(text):
             tr[fn] = tr.get(fn, 0) + 1
         if depth < 3:
@@ -231,6 +237,78 @@ def op_count(source, kernel="grad"):
                         tr[fn] = tr.get(fn, 0) + calls * k
         return ops, tr
     return count(body)
+
+
+KERNELS = ("loss", "grad", "jtj")
+BYTES_PER_CELL = 9 * 4          # 6 geometry + 3 data floats per cell-evaluation (float32)
+
+
+DIVIDER = ("div", "sqrt")     # run on the divide unit, beside the FMA units: one flop each, not FMA time
+
+
+def flops_per_cell(ops, trans, cost):
+    """A kernel's work per cell in flops: each arithmetic op one (a * b + c, an FMA, two), each
+    division and square root one (they run on the divide unit beside the FMA units; timed alone they
+    cost `cost` FMA slots, but in a kernel they overlap its FMAs), each other builtin (SLEEF: FMA
+    arithmetic) two per FMA slot of its measured cost."""
+    return ops + sum(k * (1 if fn in DIVIDER else 2 * (1 + cost.get(fn, 0.0))) for fn, k in trans.items())
+
+
+def kernel_rooflines(args, paths, n_mat):
+    """Per PoCL present (the chosen device if none), float32 at the width brdfcl chooses: the
+    device's roofline (`roofline`) and, for the loss, gradient and J^T J kernels over ``n_mat``
+    materials in one launch, the work per cell (`op_count`, `flops_per_cell`), the achieved rate
+    and its fraction of the roofline and of the FMA peak.  Rows of dicts."""
+    from brdfcl.device.engine import extract
+    idx = select_cells()
+    names, (data,) = extract([read_merl(p) for p in paths[:n_mat]], [idx], np.float32)
+    rows = []
+    for dev in pocl_devices() or [args.device]:
+        eng = Engine(args.model, device=dev, real="float", metric=args.metric)
+        cs = eng.upload(names, idx, data)
+        V = np.tile(eng.model.defaults(), (len(names), 1))
+        mats = np.arange(len(names))
+        bw, peak, cost = roofline(eng, args.repeat)
+        for kernel in KERNELS:
+            run = getattr(eng, kernel)
+            sec = median_time(lambda run=run: run(cs, V, mats), args.repeat)
+            ops, trans = op_count(eng.source, kernel)
+            work = flops_per_cell(ops, trans, cost)
+            achieved = len(names) * idx.size / sec * work        # flop/s
+            attainable = min(peak, work / BYTES_PER_CELL * bw)
+            rows.append({"platform": eng.device.platform.version.split("  ")[0], "vw": eng.opt.vw,
+                         "kernel": kernel, "ops": ops, "trans": trans, "work": work, "seconds": sec,
+                         "achieved": achieved, "attainable": attainable, "peak": peak,
+                         "bandwidth": bw, "cost": cost,
+                         "bound": "compute" if work / BYTES_PER_CELL * bw > peak else "memory"})
+    return rows, len(names)
+
+
+def kernel_roofline_lines(rows, n_mat, repeat):
+    lines = ["## Roofline per kernel and PoCL", "",
+             f"float32, {n_mat} materials in one launch, medians of {repeat}; each device's bandwidth, FMA peak "
+             "and builtin costs measured in the same run (`roofline`). Work per cell counted in the generated "
+             "source (comments removed, inline functions expanded, dead code not removed: an upper estimate for "
+             "the loss kernel, which computes derivatives it does not use), in flops: each +, -, *, fmin, fmax one; "
+             "each division and square root one (the divide unit works beside the FMA units); each other builtin "
+             "(SLEEF's FMA arithmetic) two per FMA of its measured cost. The FMA peak in flops (an FMA is two).", "",
+             "| PoCL | width | kernel | ops + calls per cell | flops per cell | achieved (GFLOP/s) | "
+             "FMA peak (GFLOP/s) | of the roofline | of the FMA peak | bound |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        calls = ", ".join(f"{k} {fn}" for fn, k in sorted(r["trans"].items()))
+        lines.append(f"| {r['platform']} | {r['vw']} | {r['kernel']} | {r['ops']} ops, {calls} | {r['work']:.0f} | "
+                     f"{r['achieved'] / 1e9:.1f} | {r['peak'] / 1e9:.1f} | "
+                     f"{100 * r['achieved'] / r['attainable']:.0f}% | {100 * r['achieved'] / r['peak']:.0f}% | "
+                     f"{r['bound']} |")
+    seen = {}
+    for r in rows:
+        seen.setdefault(r["platform"], r)
+    lines.append("")
+    for plat, r in seen.items():
+        lines.append(f"* {plat}: streaming read {r['bandwidth'] / 1e9:.1f} GB/s; each operation timed alone, in FMA "
+                     "times beyond the FMA: " + ", ".join(f"{fn} {c:.1f}" for fn, c in r["cost"].items()))
+    return lines
 
 
 def scattered_throughput(args, merl_rate, n_mat):
@@ -318,10 +396,10 @@ def main(argv=None):
     bw, peak, cost = roofline(eng32, args.repeat)
     ops, trans = op_count(eng32.source)
     rate32 = rows[0][3]
-    bytes_per = 9 * 4                                     # 6 geometry + 3 data floats per cell-eval
-    weighted = ops + sum(k * (1 + cost.get(fn, 0.0)) for fn, k in trans.items())   # FMA-equivalents
+    bytes_per = BYTES_PER_CELL
+    weighted = flops_per_cell(ops, trans, cost)
     ai = weighted / bytes_per
-    attainable = min(peak / 2, ai * bw)                   # an op is half an FMA's two flops
+    attainable = min(peak, ai * bw)
     achieved = rate32 * weighted
 
     ref = rows[2][3]
@@ -340,20 +418,22 @@ def main(argv=None):
               f"{'coalesced reads' if eng32.device.type & cl.device_type.GPU else 'one contiguous block per work-item'}"
               "); "
               f"FMA peak {peak / 1e9:.1f} GFLOP/s (8 independent chains of a * b + c)",
-              "* cost of each builtin, measured the same way, in FMA-equivalents beyond the FMA: "
+              "* cost of each builtin and of a division, measured the same way, in FMA-equivalents beyond the FMA: "
               + ", ".join(f"{fn} {c:.1f}" for fn, c in cost.items()),
               f"* per cell-evaluation: {ops} arithmetic ops and "
               + ", ".join(f"{k} {fn}" for fn, k in sorted(trans.items()))
-              + f" (counted in the generated source, an estimate): {weighted:.0f} FMA-equivalents; "
-              f"{bytes_per} bytes read (arithmetic intensity {ai:.1f} op/byte)",
-              f"* achieved {achieved / 1e9:.1f} Gop/s and {rate32 * bytes_per / 1e9:.1f} GB/s; "
-              f"attainable at this intensity {attainable / 1e9:.1f} Gop/s: "
-              f"{100 * achieved / attainable:.0f}% of the roofline "
+              + f" (counted in the generated source as in the per-kernel table below): {weighted:.0f} flops; "
+              f"{bytes_per} bytes read (arithmetic intensity {ai:.1f} flop/byte)",
+              f"* achieved {achieved / 1e9:.1f} GFLOP/s and {rate32 * bytes_per / 1e9:.1f} GB/s; "
+              f"attainable at this intensity {attainable / 1e9:.1f} GFLOP/s: "
+              f"{100 * achieved / attainable:.0f}% of the roofline, {100 * achieved / peak:.0f}% of the FMA peak "
               f"({'compute' if ai * bw > peak / 2 else 'memory'} bound)", "",
               f"Database load (read 80 files, upload float32 cells): {notes['load_s']:.1f} s."]
     scattered = scattered_throughput(args, rows[0][3] * 3, n_mat)
     if scattered:
         lines += [""] + scattered
+    k_rows, n_k = kernel_rooflines(args, paths, min(args.compare_materials or 24, n_mat))
+    lines += [""] + kernel_roofline_lines(k_rows, n_k, args.repeat)
     cmp_rows = []
     if args.compare_materials and pocl_devices():
         cmp_rows, n_cmp = compare(args, paths, min(args.compare_materials, n_mat))
@@ -368,8 +448,8 @@ def main(argv=None):
     (out / "bench_eval.json").write_text(json.dumps({
         "rows": [dict(zip(("name", "materials", "seconds", "rate"), r)) for r in rows],
         "bandwidth": bw, "peak": peak, "builtin_cost": cost, "ops": ops, "transcendentals": trans,
-        "fma_equivalents": weighted, "vector_width": eng32.opt.vw,
-        "compare": cmp_rows}, indent=1))
+        "flops_per_cell": weighted, "vector_width": eng32.opt.vw,
+        "compare": cmp_rows, "kernels": k_rows}, indent=1))
     return 0
 
 
