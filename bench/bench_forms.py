@@ -8,8 +8,9 @@ Forms fitted (one batch each, default options): ``ggx`` (the default model), ``g
 started from the ggx fit with gamma = 2, `Fitter.fit(start=...)`), ``gtr-hc`` (height-correlated
 Smith, warm started from the gtr fit), ``gtr-dielectric`` (its own global search: its Fresnel
 has one index where Schlick has an F0 per channel), ``gtr-dielectric-warm`` (the same model
-warm started from the gtr fit, `dielectric_from_schlick`) and ``abc`` (Löw et al. 2012's NDF
-with Schlick, its own global search).  Reported per set of candidates: the median
+warm started from the gtr fit, `dielectric_from_schlick`), ``abc`` (Löw et al. 2012's NDF
+with Schlick, its own global search) and ``abc-warm`` (the same, warm started from the
+gtr-dielectric fit, `abc_from_gtr`).  Reported per set of candidates: the median
 ratio to the better of SGD and ABC microfacet, the materials worse than it, the forms chosen, the
 time of the fits it needs.  Writes bench/results/forms_published.md.
 
@@ -56,16 +57,36 @@ def dielectric_from_schlick(source_results, model) -> np.ndarray:
     return np.where(np.isfinite(x), x, model.defaults()[None, :])
 
 
+def abc_from_gtr(source_results, model) -> np.ndarray:
+    """Start values of the ABC form (Schlick) from GTR fits: near the peak 1 - cos th ~ th^2 / 2 and
+    tan^2 th ~ th^2, so (1 + tan^2 / alpha^2)^-gamma ~ (1 + B (1 - cos th))^-C at B = 2 / alpha^2,
+    C = gamma (the tails match too: th^-2 gamma); a dielectric's eta gives F0 = ((eta - 1) / (eta + 1))^2
+    in every channel (same F at normal incidence); values clipped to the bounds."""
+    rows = []
+    for r in source_results:
+        p = dict(r.params)
+        alpha, gamma = p.pop("ct.alpha"), p.pop("ct.gamma")
+        p["ct.B"], p["ct.C"] = 2.0 / (alpha * alpha), gamma
+        if "ct.eta" in p:
+            eta = p.pop("ct.eta")
+            for c in "rgb":
+                p[f"ct.F0_{c}"] = ((eta - 1) / (eta + 1)) ** 2
+        rows.append([p.get(n, np.nan) for n in model.names])
+    x = np.clip(np.array(rows, dtype=np.float64).reshape(len(rows), len(model.names)), model.lo, model.hi)
+    return np.where(np.isfinite(x), x, model.defaults()[None, :])
+
+
 FORMS = {"ggx": ("diffuse+diffraction+ggx", None),
          "gtr": ("diffuse+diffraction+gtr", "ggx"),
          "gtr-hc": ("diffuse+diffraction+gtr:smith-hc:schlick", "gtr"),
          "gtr-dielectric": ("diffuse+diffraction+gtr:smith:dielectric", None),
          "gtr-dielectric-warm": ("diffuse+diffraction+gtr:smith:dielectric", "gtr"),
-         "abc": ("diffuse+diffraction+abc", None)}
+         "abc": ("diffuse+diffraction+abc", None),
+         "abc-warm": ("diffuse+diffraction+abc", "gtr-dielectric")}
 SETS = (("ggx",), ("gtr",), ("gtr-dielectric",), ("gtr-dielectric-warm",), ("abc",), ("ggx", "gtr"),
         ("gtr", "gtr-dielectric"), ("gtr", "gtr-dielectric-warm"), ("ggx", "gtr", "gtr-dielectric"),
         ("ggx", "gtr", "gtr-hc", "gtr-dielectric"), ("gtr-dielectric", "abc"), ("ggx", "gtr-dielectric-warm", "abc"),
-        ("ggx", "gtr", "gtr-dielectric-warm", "abc"))
+        ("ggx", "gtr", "gtr-dielectric-warm", "abc"), ("abc-warm",), ("gtr-dielectric", "abc-warm"))
 RIVALS = ("sgd_bagher2012", "abc_low2012_microfacet_e2")
 
 
@@ -81,7 +102,8 @@ def main(argv=None) -> int:
     results, seconds = {}, {}
     for k, (_, warm) in FORMS.items():
         t = time.perf_counter()
-        convert = dielectric_from_schlick if "dielectric" in k and warm and "dielectric" not in warm else warm_start
+        convert = (abc_from_gtr if k.startswith("abc") else
+                   dielectric_from_schlick if "dielectric" in k and warm and "dielectric" not in warm else warm_start)
         start = convert(results[warm], fitters[k].model) if warm else None
         results[k] = fitters[k].fit(names, full, coarse, start=start)
         seconds[k] = time.perf_counter() - t
