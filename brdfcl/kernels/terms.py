@@ -23,6 +23,20 @@ from brdfcl.model.terms.symbols import CELL, EXP_LIMIT, f
 _VECTOR = frozenset((f, *CELL))
 
 
+class recip(sp.Function):
+    """1 / x.  Written for every negative integer power before the shared subexpressions are found,
+    so that each distinct denominator is divided once (the kernels' time on a CPU is bound by the
+    divide unit), and once per work-item when it depends on parameters alone (a loop invariant)."""
+
+    nargs = 1
+
+
+def _reciprocals(e):
+    """``e`` with every x^-n (x not a number, n a positive integer) as recip(x)^n."""
+    return e.replace(lambda x: x.is_Pow and x.exp.is_Integer and x.exp < 0 and not x.base.is_number,
+                     lambda x: recip(x.base) ** (-x.exp))
+
+
 def is_vector(e) -> bool:
     return bool(getattr(e, "free_symbols", set()) & _VECTOR)
 
@@ -55,6 +69,9 @@ class _Printer(C99CodePrinter):
 
     def _print_Pi(self, e):
         return "PI_R"
+
+    def _print_recip(self, e):
+        return f"((real)1 / ({self._print(e.args[0])}))"
 
     def _print_Exp1(self, e):
         return "(real)M_E"
@@ -122,7 +139,7 @@ def c_source(term) -> str:
     """The term's OpenCL function (value returned, derivatives through pointers)."""
     value, derivs = term.expressions()
     names = list(derivs)
-    temps, (v, *ds) = sp.cse([_numbers(e) for e in (value, *derivs.values())],
+    temps, (v, *ds) = sp.cse([_reciprocals(_numbers(e)) for e in (value, *derivs.values())],
                              symbols=sp.numbered_symbols("t"), optimizations="basic")
     vectors: set = set()
     body = []
