@@ -135,13 +135,15 @@ def roofline(eng, repeat):
     nw = dev.max_compute_units * (2048 if gpu else 64)       # a GPU hides latency with many work-items
     out = cl.Buffer(ctx, cl.mem_flags.WRITE_ONLY, nw * 4)
 
-    def timed(name, *args):
+    def timed(name, *args, best=False):
         k = cl.Kernel(prg, name)
+        if best:                           # a peak is the best the device does: the fastest run
+            return min(median_time(lambda: k(queue, (nw,), None, *args).wait(), 1) for _ in range(repeat))
         return median_time(lambda: k(queue, (nw,), None, *args).wait(), repeat)
 
     bw = nv * 4 * vw / timed("stream", a, out, np.int32(nv))
     iters = 4000 * 16 // vw
-    t_fma = timed("fma_peak", out, np.int32(iters))
+    t_fma = timed("fma_peak", out, np.int32(iters), best=True)
     flops = nw * iters * 8 * vw * 2 / t_fma
     cost = {fn: max(timed(f"cost_{fn}", out, np.int32(iters // 8)) * 8 / t_fma - 1.0, 0.0)
             for fn in MEASURED}
@@ -393,15 +395,6 @@ def main(argv=None):
         tn = median_time(run, max(1, args.repeat // 2))
         rows.append((f"{name} (one material at a time)", k, tn, k * n_cells / tn))
 
-    bw, peak, cost = roofline(eng32, args.repeat)
-    ops, trans = op_count(eng32.source)
-    rate32 = rows[0][3]
-    bytes_per = BYTES_PER_CELL
-    weighted = flops_per_cell(ops, trans, cost)
-    ai = weighted / bytes_per
-    attainable = min(peak, ai * bw)
-    achieved = rate32 * weighted
-
     ref = rows[2][3]
     lines = [f"# bench_eval: loss + gradient throughput ({datetime.date.today()})", "",
              f"Data: MERL-proxy ({n_mat} materials from {data}), {n_cells} cells per material "
@@ -413,22 +406,8 @@ def main(argv=None):
              "material-cells/s | speed-up vs numpy float64 |", "|---|---|---|---|---|"]
     for name, nm, tt, rate in rows:
         lines.append(f"| {name} | {nm} | {tt:.3f} | {rate:.3g} | {rate / ref:.1f}x |")
-    lines += ["", "Roofline of the float32 kernel, measured in the same run:", "",
-              f"* streaming read bandwidth {bw / 1e9:.1f} GB/s ("
-              f"{'coalesced reads' if eng32.device.type & cl.device_type.GPU else 'one contiguous block per work-item'}"
-              "); "
-              f"FMA peak {peak / 1e9:.1f} GFLOP/s (8 independent chains of a * b + c)",
-              "* cost of each builtin and of a division, measured the same way, in FMA-equivalents beyond the FMA: "
-              + ", ".join(f"{fn} {c:.1f}" for fn, c in cost.items()),
-              f"* per cell-evaluation: {ops} arithmetic ops and "
-              + ", ".join(f"{k} {fn}" for fn, k in sorted(trans.items()))
-              + f" (counted in the generated source as in the per-kernel table below): {weighted:.0f} flops; "
-              f"{bytes_per} bytes read (arithmetic intensity {ai:.1f} flop/byte)",
-              f"* achieved {achieved / 1e9:.1f} GFLOP/s and {rate32 * bytes_per / 1e9:.1f} GB/s; "
-              f"attainable at this intensity {attainable / 1e9:.1f} GFLOP/s: "
-              f"{100 * achieved / attainable:.0f}% of the roofline, {100 * achieved / peak:.0f}% of the FMA peak "
-              f"({'compute' if ai * bw > peak / 2 else 'memory'} bound)", "",
-              f"Database load (read 80 files, upload float32 cells): {notes['load_s']:.1f} s."]
+    lines += ["", "The kernels on a roofline: the per-kernel table below (measured per PoCL, beside the kernels' "
+              "own timings).", "", f"Database load (read 80 files, upload float32 cells): {notes['load_s']:.1f} s."]
     scattered = scattered_throughput(args, rows[0][3] * 3, n_mat)
     if scattered:
         lines += [""] + scattered
@@ -447,8 +426,7 @@ def main(argv=None):
     (out / "bench_eval.md").write_text(text + "\n")
     (out / "bench_eval.json").write_text(json.dumps({
         "rows": [dict(zip(("name", "materials", "seconds", "rate"), r)) for r in rows],
-        "bandwidth": bw, "peak": peak, "builtin_cost": cost, "ops": ops, "transcendentals": trans,
-        "flops_per_cell": weighted, "vector_width": eng32.opt.vw,
+        "vector_width": eng32.opt.vw,
         "compare": cmp_rows, "kernels": k_rows}, indent=1))
     return 0
 
