@@ -297,6 +297,19 @@ def test_raising_evaluate_stops_everyone_and_reraises(at_call, algos):
     assert threading.active_count() == before
 
 
+def test_error_outside_an_objective_on_greenlets_stops_the_others():
+    """A problem that fails before nlopt runs it (a start of the wrong shape) raises to the caller;
+    the optimisers already waiting in their objectives are stopped (each then ends, its optimiser
+    usable again), not left suspended."""
+    fgs, _, x0s = case(3, 7)
+    opts = [make_opt("LD_LBFGS") for _ in range(3)]
+    problems = [Problem(opts[0], x0s[0], 1), Problem(opts[1], x0s[1], 2), Problem(opts[2], np.zeros(K + 2), 3)]
+    with pytest.raises(ValueError):
+        within(10, run_lockstep, problems, Evaluate(fgs), "greenlets")
+    out = within(10, run_lockstep, [Problem(opts[0], x0s[0], 1)], Evaluate(fgs[:1]))
+    assert_same_as_alone(["LD_LBFGS"], fgs[:1], x0s[:1], [1], out)
+
+
 @pytest.mark.parametrize("algo", ["GN_CRS2_LM", "LD_LBFGS"])
 def test_malformed_evaluation_stops_everyone_and_reraises(algo):
     """An answer of the wrong shape fails inside an optimiser's objective; with CRS2 (which keeps

@@ -80,6 +80,8 @@ class _Printer(C99CodePrinter):
         if e.is_number:
             return f"(real){float(e)!r}"
         b, x = e.as_base_exp()
+        if isinstance(b, recip) and x.is_Integer and 0 < int(x) <= 6:     # one division, not n
+            return self._print(sp.Pow(b.args[0], x, evaluate=False)).join(("((real)1 / ", ")"))
         if x.is_Integer and 0 < abs(int(x)) <= 6:
             base = self.parenthesize(b, 1000)     # an atom or a parenthesised expression
             n = abs(int(x))

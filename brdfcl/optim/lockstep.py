@@ -151,15 +151,23 @@ def _on_greenlets(run: _Run) -> list[Outcome | None]:
     lets = [greenlet.greenlet(lambda i=i: run.solve(i, ask)) for i in range(n)]
     outcomes: list[Outcome | None] = [None] * n
     answers: dict[int, tuple] = {i: () for i in range(n)}       # () starts a greenlet
-    while answers:
-        batch = {}
-        for i, a in answers.items():
-            got = lets[i].switch(*a) if a else lets[i].switch()
-            if lets[i].dead:
-                outcomes[i] = got
-            else:
-                batch[i] = got
-        answers = {i: (a,) for i, a in run.answer(batch).items()} if batch else {}
+    try:
+        while answers:
+            batch = {}
+            for i, a in answers.items():
+                got = lets[i].switch(*a) if a else lets[i].switch()
+                if lets[i].dead:
+                    outcomes[i] = got
+                else:
+                    batch[i] = got
+            answers = {i: (a,) for i, a in run.answer(batch).items()} if batch else {}
+    except BaseException as e:      # escaped a solve (or an interrupt): stop the suspended ones, re-raise
+        if not run.failure:
+            run.failure.append(e)
+        for let in lets:
+            if let and not let.dead:                    # started and waiting in its objective
+                let.switch((None, None))
+        raise
     return outcomes
 
 
