@@ -56,10 +56,14 @@ def test_global_search_and_pick_starts_alone_with_the_peak_constraint(constraine
     free = f.objective.loss(t.full, start.x, [0], penalty=False)
     v = f.objective.spaces.values(start.x)
     assert f.objective.loss(t.full, start.x, [0])[0] == free[0] + f.objective.peak_order.loss(v, t.full.scale)[0]
-    # the pipeline starts its local stage from the same point: its first history entry
+    # the pipeline ranks the starts on the preview cells and starts its local stage from the one
+    # picked there: its first history entry, the preview's estimate of the full table's error
+    assert t.preview is not None
+    ranked = pick_starts(f.objective, t.preview, found, n_materials=1)
     (res,) = f.fit(names, full, coarse)
     assert res.history[0][1] == "global"
-    assert res.history[0][2] == float(np.sqrt(f.objective.loss(t.full, start.x, np.arange(1))[0] / t.full.scale[0]))
+    assert res.history[0][2] == float(np.sqrt(f.objective.loss(t.preview, ranked.x, np.arange(1))[0] / t.full.scale[0]))
+    assert res.history[0][2] == pytest.approx(float(np.sqrt(ranked.fun[0] / t.full.scale[0])), rel=1e-12)
 
 
 def test_objective_forms_agree(constrained):
