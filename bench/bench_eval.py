@@ -157,11 +157,20 @@ def pocl_devices():
             if "portable computing" in p.name.lower() and d.type & cl.device_type.CPU]
 
 
-def compare(args, paths, n_mat):
+def sample_data(paths, n_mat):
+    """(names, values (n, 3, cells) float64 at the fitted cells) of the first ``n_mat`` files: the
+    materials of the per-kernel roofline and of the PoCL comparison, read once for both."""
+    from brdfcl.data.inputs import FileReader
+    from brdfcl.device.engine import extract
+    names, (data,) = extract([FileReader(p) for p in paths[:n_mat]], [select_cells()], np.float64)
+    return names, data
+
+
+def compare(args, names, data):
     """Loss + gradient throughput of every PoCL build present at the width brdfcl chooses and at
     the narrower safe widths (8 floats, 4 doubles), measured round-robin in one run: each round
-    times every configuration once, so machine noise hits them alike; medians over rounds."""
-    from brdfcl.device.engine import extract
+    times every configuration once, so machine noise hits them alike; medians over rounds.
+    ``names``, ``data``: `sample_data`."""
     idx = select_cells()
     configs = []
     for dev in pocl_devices():
@@ -172,7 +181,6 @@ def compare(args, paths, n_mat):
                                                                 metric=args.metric, vector_width=vw)
                 configs.append({"device": dev, "platform": eng.device.platform.version.split("  ")[0],
                                 "real": real, "vw": vw, "chosen": vw == chosen.opt.vw, "eng": eng})
-    names, (data,) = extract([read_merl(p) for p in paths[:n_mat]], [idx], np.float64)
     for c in configs:
         c["cs"] = c["eng"].upload(names, idx, data.astype(c["eng"].dtype))
     V = np.tile(configs[0]["eng"].model.defaults(), (len(names), 1))
@@ -256,14 +264,14 @@ def flops_per_cell(ops, trans, cost):
     return ops + sum(k * (1 if fn in DIVIDER else 2 * (1 + cost.get(fn, 0.0))) for fn, k in trans.items())
 
 
-def kernel_rooflines(args, paths, n_mat):
+def kernel_rooflines(args, names, data):
     """Per PoCL present (the chosen device if none), float32 at the width brdfcl chooses: the
-    device's roofline (`roofline`) and, for the loss, gradient and J^T J kernels over ``n_mat``
-    materials in one launch, the work per cell (`op_count`, `flops_per_cell`), the achieved rate
-    and its fraction of the roofline and of the FMA peak.  Rows of dicts."""
-    from brdfcl.device.engine import extract
+    device's roofline (`roofline`) and, for the loss, gradient and J^T J kernels over the materials
+    ``names``, ``data`` (`sample_data`) in one launch, the work per cell (`op_count`,
+    `flops_per_cell`), the achieved rate and its fraction of the roofline and of the FMA peak.
+    Rows of dicts."""
     idx = select_cells()
-    names, (data,) = extract([read_merl(p) for p in paths[:n_mat]], [idx], np.float32)
+    data = data.astype(np.float32)
     rows = []
     for dev in pocl_devices() or [args.device]:
         eng = Engine(args.model, device=dev, real="float", metric=args.metric)
@@ -411,11 +419,12 @@ def main(argv=None):
     scattered = scattered_throughput(args, rows[0][3] * 3, n_mat)
     if scattered:
         lines += [""] + scattered
-    k_rows, n_k = kernel_rooflines(args, paths, min(args.compare_materials or 24, n_mat))
+    sample = sample_data(paths, min(args.compare_materials or 24, n_mat))
+    k_rows, n_k = kernel_rooflines(args, *sample)
     lines += [""] + kernel_roofline_lines(k_rows, n_k, args.repeat)
     cmp_rows = []
     if args.compare_materials and pocl_devices():
-        cmp_rows, n_cmp = compare(args, paths, min(args.compare_materials, n_mat))
+        cmp_rows, n_cmp = compare(args, *sample)
         lines += [""] + compare_lines(cmp_rows, n_cmp, args.repeat)
     elif args.compare_materials:
         lines += ["", "No PoCL CPU device here: the comparison of PoCL builds and vector widths is left out."]

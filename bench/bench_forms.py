@@ -37,52 +37,63 @@ from brdfcl.optim.forms import warm_start  # noqa: E402
 from brdfcl.optim.selection import select  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
+
+
+def f0_of_eta(eta):
+    """A dielectric's reflectance at normal incidence."""
+    return ((eta - 1) / (eta + 1)) ** 2
+
+
+def start_rows(params: list[dict], model) -> np.ndarray:
+    """Start values (n, ``model``'s parameters) from parameter dicts: clipped to the bounds, the
+    model's defaults where a value is missing or not finite."""
+    x = np.array([[p.get(n, np.nan) for n in model.names] for p in params], dtype=np.float64)
+    x = np.clip(x.reshape(len(params), len(model.names)), model.lo, model.hi)
+    return np.where(np.isfinite(x), x, model.defaults()[None, :])
+
+
 def dielectric_from_schlick(source_results, model) -> np.ndarray:
     """Start values of a dielectric-Fresnel form from the fits of the same form with Schlick: eta
     from the mean F0 (F0 = ((eta - 1) / (eta + 1))^2, clipped to eta's bounds) and each channel's
     amplitude scaled so that rho x F at normal incidence is kept; the rest copied."""
-    rows = []
     lo, hi = (model.lo[model.names.index("ct.eta")], model.hi[model.names.index("ct.eta")])
+    params = []
     for r in source_results:
         p = dict(r.params)
         f0 = np.array([p.pop(f"ct.F0_{c}") for c in "rgb"])
         s = np.sqrt(np.clip(f0.mean(), 1e-6, 0.999))
-        eta = float(np.clip((1 + s) / (1 - s), lo, hi))
-        fd = ((eta - 1) / (eta + 1)) ** 2
+        p["ct.eta"] = eta = float(np.clip((1 + s) / (1 - s), lo, hi))
         for k, c in enumerate("rgb"):
-            p[f"ct.rho_{c}"] *= f0[k] / fd
-        p["ct.eta"] = eta
-        rows.append([p.get(n, np.nan) for n in model.names])
-    x = np.array(rows, dtype=np.float64).reshape(len(rows), len(model.names))
-    return np.where(np.isfinite(x), x, model.defaults()[None, :])
+            p[f"ct.rho_{c}"] *= f0[k] / f0_of_eta(eta)
+        params.append(p)
+    return start_rows(params, model)
 
 
 def abc_from_gtr(source_results, model) -> np.ndarray:
     """Start values of the ABC form (Schlick) from GTR fits: near the peak 1 - cos th ~ th^2 / 2 and
     tan^2 th ~ th^2, so (1 + tan^2 / alpha^2)^-gamma ~ (1 + B (1 - cos th))^-C at B = 2 / alpha^2,
-    C = gamma (the tails match too: th^-2 gamma); a dielectric's eta gives F0 = ((eta - 1) / (eta + 1))^2
-    in every channel (same F at normal incidence); values clipped to the bounds."""
-    rows = []
+    C = gamma (the tails match too: th^-2 gamma); a dielectric's eta gives its F0 in every channel
+    (same F at normal incidence)."""
+    params = []
     for r in source_results:
         p = dict(r.params)
         alpha, gamma = p.pop("ct.alpha"), p.pop("ct.gamma")
         p["ct.B"], p["ct.C"] = 2.0 / (alpha * alpha), gamma
         if "ct.eta" in p:
-            eta = p.pop("ct.eta")
-            for c in "rgb":
-                p[f"ct.F0_{c}"] = ((eta - 1) / (eta + 1)) ** 2
-        rows.append([p.get(n, np.nan) for n in model.names])
-    x = np.clip(np.array(rows, dtype=np.float64).reshape(len(rows), len(model.names)), model.lo, model.hi)
-    return np.where(np.isfinite(x), x, model.defaults()[None, :])
+            f0 = f0_of_eta(p.pop("ct.eta"))
+            p.update({f"ct.F0_{c}": f0 for c in "rgb"})
+        params.append(p)
+    return start_rows(params, model)
 
 
-FORMS = {"ggx": ("diffuse+diffraction+ggx", None),
-         "gtr": ("diffuse+diffraction+gtr", "ggx"),
-         "gtr-hc": ("diffuse+diffraction+gtr:smith-hc:schlick", "gtr"),
-         "gtr-dielectric": ("diffuse+diffraction+gtr:smith:dielectric", None),
-         "gtr-dielectric-warm": ("diffuse+diffraction+gtr:smith:dielectric", "gtr"),
-         "abc": ("diffuse+diffraction+abc", None),
-         "abc-warm": ("diffuse+diffraction+abc", "gtr-dielectric")}
+FORMS = {   # key: (model, the form it starts from (None: its own global search), how)
+    "ggx": ("diffuse+diffraction+ggx", None, None),
+    "gtr": ("diffuse+diffraction+gtr", "ggx", warm_start),
+    "gtr-hc": ("diffuse+diffraction+gtr:smith-hc:schlick", "gtr", warm_start),
+    "gtr-dielectric": ("diffuse+diffraction+gtr:smith:dielectric", None, None),
+    "gtr-dielectric-warm": ("diffuse+diffraction+gtr:smith:dielectric", "gtr", dielectric_from_schlick),
+    "abc": ("diffuse+diffraction+abc", None, None),
+    "abc-warm": ("diffuse+diffraction+abc", "gtr-dielectric", abc_from_gtr)}
 SETS = (("ggx",), ("gtr",), ("gtr-dielectric",), ("gtr-dielectric-warm",), ("abc",), ("ggx", "gtr"),
         ("gtr", "gtr-dielectric"), ("gtr", "gtr-dielectric-warm"), ("ggx", "gtr", "gtr-dielectric"),
         ("ggx", "gtr", "gtr-hc", "gtr-dielectric"), ("gtr-dielectric", "abc"), ("ggx", "gtr-dielectric-warm", "abc"),
@@ -96,14 +107,12 @@ def main(argv=None) -> int:
     ap.add_argument("--out", default=str(HERE / "results" / "forms_published.md"))
     args = ap.parse_args(argv)
     paths = [Path(p) for p in list_database(args.data)]
-    fitters = {k: Fitter(FitOptions(model=spec)) for k, (spec, _) in FORMS.items()}
+    fitters = {k: Fitter(FitOptions(model=spec)) for k, (spec, _, _) in FORMS.items()}
     tables = [read_merl(p) for p in paths]
     names, full, coarse = load_batch(tables, fitters["ggx"])
     results, seconds = {}, {}
-    for k, (_, warm) in FORMS.items():
+    for k, (_, warm, convert) in FORMS.items():
         t = time.perf_counter()
-        convert = (abc_from_gtr if k.startswith("abc") else
-                   dielectric_from_schlick if "dielectric" in k and warm and "dielectric" not in warm else warm_start)
         start = convert(results[warm], fitters[k].model) if warm else None
         results[k] = fitters[k].fit(names, full, coarse, start=start)
         seconds[k] = time.perf_counter() - t
@@ -124,7 +133,7 @@ def main(argv=None) -> int:
              f"Made by `python bench/bench_forms.py`. Data: MERL-proxy ({args.data}), {len(names)} materials. CPU: "
              f"{cp.cpu_name()}; brdfcl {__version__}; default device, default options. Forms: "
              + "; ".join(f"`{k}` = `{specs[k]}`" + (f" (warm start from `{w}`)" if w else " (global search)")
-                         for k, (_, w) in FORMS.items()) + ".", "",
+                         for k, (_, w, _) in FORMS.items()) + ".", "",
              "Each material's form is the candidate of least penalised error (rmse_log x (1 + 0.02 x free "
              "parameters), the lobe comparison's criterion); its fit is scored as in published.md and divided by "
              "the better of the SGD and ABC microfacet fits. Time: the fits the set needs, one batch each, single "

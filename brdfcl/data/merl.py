@@ -60,6 +60,12 @@ def material_name(path) -> str:
     return Path(path).name[: -len(".binary")] if str(path).endswith(".binary") else Path(path).stem
 
 
+def missing(values: np.ndarray) -> np.ndarray:
+    """Where stored values mark a missing cell: negative, NaN or inf (one pass)."""
+    with np.errstate(invalid="ignore"):
+        return ~((values >= 0) & (values < np.inf))
+
+
 def read_numbers(path, out: np.ndarray | None = None) -> np.ndarray:
     """A MERL file's numbers as stored, (3, N_CELLS) float64, after validating header and size;
     read into ``out`` ((3 * N_CELLS,) or (3, N_CELLS) float64) when given: a buffer reused
@@ -99,8 +105,7 @@ def read_merl(path) -> MerlTable:
 
     Holds exactly one float64 copy of the file's numbers."""
     raw = read_numbers(path)
-    with np.errstate(invalid="ignore"):
-        bad = ~((raw >= 0) & (raw < np.inf))         # negative, NaN or inf, in one pass
+    bad = missing(raw)
     np.copyto(raw, np.nan, where=bad)
     n_missing = int(np.count_nonzero(bad[0] | bad[1] | bad[2]))
     if n_missing == N_CELLS:
@@ -117,8 +122,7 @@ def read_merl_at(path, indices, outs, buffer: np.ndarray | None = None) -> str:
     for o, idx in zip(outs, indices):
         for c in range(3):
             np.multiply(raw[c].take(idx), SCALE[c], out=o[c], casting="same_kind")
-        with np.errstate(invalid="ignore"):
-            np.copyto(o, np.nan, where=~((o >= 0) & (o < np.inf)))
+        np.copyto(o, np.nan, where=missing(o))
     if len(indices) and np.size(indices[0]) and np.isnan(outs[0]).any(axis=0).all():
         raise MerlError(f"{os.fspath(path)}: every cell is missing within the fitted region "
                         f"(all values negative, NaN or inf)")

@@ -125,15 +125,15 @@ class Fitter:
         uncertainty); ``start_values``: see `fit`."""
         o, objective = self.opts, self.objective
         batch = _Batch(self, names, full_data, t.full, on_result, t0)
+        ranking = t.full if t.preview is None else t.preview    # a few starts need no full table
         if start_values is None:
             found = global_search(objective, t.coarse, names=names, options=o, penalty=o.ct_peak_global, log=log)
-            # ranking a few starts needs no full table: every n-th cell (1/8 of the launch)
-            start = pick_starts(objective, t.full if t.preview is None else t.preview, found, n_materials=len(names))
+            start = pick_starts(objective, ranking, found, n_materials=len(names))
         else:
             found = start = _warm_start(objective, np.asarray(start_values, dtype=np.float64), len(names))
         loss0 = start.fun
         if not np.isfinite(loss0).all():          # defaults taken: their loss was not evaluated
-            loss0 = objective.loss(t.full if t.preview is None else t.preview, start.x, np.arange(len(names)))
+            loss0 = objective.loss(ranking, start.x, np.arange(len(names)))
         batch.started(found, loss0)
         x0, local, previewed = start.x, o, None
         if t.preview is not None:       # multi-resolution: converge on every n-th cell first
