@@ -51,13 +51,19 @@ class MerlTable:
         """BRDF values (3, len(index)) at some cells, without a copy of the whole table (into
         ``out`` when given)."""
         out = np.empty((3, len(index)), dtype=dtype) if out is None else out
-        for c in range(3):
-            np.multiply(self.stored[c].take(index), SCALE[c], out=out[c], casting="same_kind")
-        return out
+        return scaled_at(self.stored, index, out)
 
 
 def material_name(path) -> str:
     return Path(path).name[: -len(".binary")] if str(path).endswith(".binary") else Path(path).stem
+
+
+def scaled_at(stored: np.ndarray, index, out: np.ndarray) -> np.ndarray:
+    """The BRDF (stored numbers times the channel scale) of ``stored`` (3, N_CELLS) at the cells
+    ``index``, into ``out`` (3, len(index)) of any float type; returns ``out``."""
+    for c in range(3):
+        np.multiply(stored[c].take(index), SCALE[c], out=out[c], casting="same_kind")
+    return out
 
 
 def missing(values: np.ndarray) -> np.ndarray:
@@ -120,9 +126,7 @@ def read_merl_at(path, indices, outs, buffer: np.ndarray | None = None) -> str:
     file) for a file that cannot be used, or whose cells of the first index set are all missing."""
     raw = read_numbers(path, buffer)
     for o, idx in zip(outs, indices):
-        for c in range(3):
-            np.multiply(raw[c].take(idx), SCALE[c], out=o[c], casting="same_kind")
-        np.copyto(o, np.nan, where=missing(o))
+        np.copyto(scaled_at(raw, idx, o), np.nan, where=missing(o))
     if len(indices) and np.size(indices[0]) and np.isnan(outs[0]).any(axis=0).all():
         raise MerlError(f"{os.fspath(path)}: every cell is missing within the fitted region "
                         f"(all values negative, NaN or inf)")
