@@ -29,6 +29,15 @@ def test_recovers_every_demo_parameter(demo_db):
             assert r.params[k] == pytest.approx(v, rel=0.01), (name, k)
 
 
+def test_exact_fits_in_the_default_batch_stop_converged(demo_db):
+    """The demo's five materials in one batch with the default model: the exact ones (mirror, smooth
+    metal) stop at the float32 noise floor as converged instead of stepping on rounding noise until
+    the iteration limit (they did once the starts were ranked on the preview cells)."""
+    res = {r.name: r for r in _fit(sorted(demo_db.glob("*.binary")))}
+    for name in ("synth-mirror", "synth-smooth-metal"):
+        assert res[name].errors["rmse_log"] < 1e-5 and res[name].status.startswith("converged"), res[name].status
+
+
 def test_fit_all_outputs_resume_and_export(demo_db, tmp_path):
     out = tmp_path / "out"
     args = [sys.executable, "-m", "brdfcl.app.cli", "fit-all", str(demo_db), "--out", str(out),

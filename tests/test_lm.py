@@ -392,3 +392,21 @@ def test_batched_steps_equal_each_materials_own():
         np.testing.assert_allclose(d[i], d_i, rtol=1e-8, atol=1e-12 * np.abs(d_i).max(initial=1))
         assert dec[i] == pytest.approx(dec_i, rel=1e-6, abs=1e-12)
     assert lm_steps(H[:, :0, :0], g[:, :0], x[:, :0], lo[:0], hi[:0], lam).shape == (m, 0)   # nothing free
+
+
+def test_a_row_at_its_floor_stops_converged_while_the_others_run():
+    """A row whose loss is at or below its ``floor`` (an exact fit's rounding noise) stops before
+    a launch as converged; the same row without a floor keeps stepping; the other rows are not
+    affected.  Catches the exact demo fits that ran to the iteration limit on rounding noise."""
+    lo, hi = np.full(2, -5.0), np.full(2, 5.0)
+    res = [rosenbrock, rosenbrock]
+    x0 = np.array([[1.001, 1.0], [-1.2, 1.0]])            # row 0 next to the minimum, row 1 far
+    start = loss_at(rosenbrock, x0[0])
+    b = Batch(res, lo, hi)
+    st = levenberg_marquardt(b, x0, lo, hi, LMOptions(), floor=np.array([2 * start, 0.0]))
+    assert st.status[0] == "converged (at the noise floor)" and st.iters[0] == 0
+    np.testing.assert_array_equal(st.x[0], x0[0])
+    assert st.status[1].startswith("converged") and st.loss[1] < 1e-10
+    free = levenberg_marquardt(Batch(res, lo, hi), x0, lo, hi, LMOptions())
+    assert free.iters[0] > 0 and free.status[0] != "converged (at the noise floor)"
+    np.testing.assert_array_equal(st.x[1], free.x[1])

@@ -26,7 +26,7 @@ from brdfcl.optim.assessment import assess, bounds_hit, evaluate
 from brdfcl.optim.lm import LMOptions
 from brdfcl.optim.objective import Objective, Target, penalty_scale
 from brdfcl.optim.options import GLOBAL_METHODS, FitOptions
-from brdfcl.optim.refine import refine
+from brdfcl.optim.refine import NOISE_FLOOR, refine
 from brdfcl.optim.result import FitResult, StageResult
 from brdfcl.optim.search import coarse_cells, global_search, material_seed, pick_starts
 
@@ -162,7 +162,6 @@ def _warm_start(objective: Objective, values: np.ndarray, n: int) -> StageResult
 
 
 SETTLED = 1e-3           # the full-table iterations lowered the loss by less than this, relative
-NOISE_FLOOR = 1e-5       # rmse_log below which a fit is exact to float32 (changes are rounding)
 
 
 def _finished_status(done: StageResult, previewed: StageResult | None, before: np.ndarray,

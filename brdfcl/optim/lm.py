@@ -117,8 +117,11 @@ class LMRun:
     (write their results) between launches, outside the solver."""
 
     def __init__(self, jtj_x: JTJ, x0: np.ndarray, lo: np.ndarray, hi: np.ndarray,
-                 opts: LMOptions | None = None):
+                 opts: LMOptions | None = None, floor: np.ndarray | None = None):
+        """``floor`` (n,): a loss at or below which a row has converged whatever its steps still
+        change (the rounding noise of an exact fit: relative decreases there never settle)."""
         self.jtj_x, self.lo, self.hi = jtj_x, lo, hi
+        self.floor = np.full(x0.shape[0], -np.inf) if floor is None else np.asarray(floor, dtype=np.float64)
         self.opts = opts or LMOptions()
         n = x0.shape[0]
         x = np.clip(x0, lo, hi).astype(np.float64)
@@ -142,11 +145,14 @@ class LMRun:
             if rows.size == 0:
                 break
             trial = np.clip(x[rows] + lm_steps(H[rows], g[rows], x[rows], lo, hi, lam[rows]), lo, hi)
-            # stop before launching where even an undamped Gauss-Newton step would gain < ftol
+            # stop before launching at the floor, or where even an undamped Gauss-Newton step
+            # would gain < ftol
             pred = newton_decrements(H[rows], g[rows], x[rows], lo, hi)
-            flat = pred <= opts.ftol * np.maximum(L[rows], 1e-300)
-            for i in rows[flat]:
-                status[i] = "converged (predicted decrease below ftol)"
+            floored = L[rows] <= self.floor[rows]
+            flat = floored | (pred <= opts.ftol * np.maximum(L[rows], 1e-300))
+            for i, at_floor in zip(rows[flat], floored[flat]):
+                status[i] = ("converged (at the noise floor)" if at_floor
+                             else "converged (predicted decrease below ftol)")
                 running[i] = False
             if flat.any():
                 yield LMStep(it, st, running, rows[flat], False)
@@ -186,14 +192,15 @@ class LMRun:
 
 def levenberg_marquardt(jtj_x: JTJ, x0: np.ndarray, lo: np.ndarray, hi: np.ndarray,
                         opts: LMOptions | None = None, on_done: OnDone | None = None,
-                        on_iter: OnIter | None = None) -> LMState:
+                        on_iter: OnIter | None = None, floor: np.ndarray | None = None) -> LMState:
     """Minimise each row's loss from x0 (n, k).
 
     ``jtj_x(x (m, k), rows (m,)) -> (loss (m,), JTr (m, k), JTJ (m, k, k))`` in x space.
     ``on_done(rows, x, loss, status)`` is called with the rows that finish, as they do (before an
     iteration's launch, after it, at the iteration limit); ``on_iter(it, x, loss, running)`` after
-    each launch.  `LMRun` gives the same moments as a loop instead of callbacks."""
-    run = LMRun(jtj_x, x0, lo, hi, opts)
+    each launch; ``floor``: see `LMRun`.  `LMRun` gives the same moments as a loop instead of
+    callbacks."""
+    run = LMRun(jtj_x, x0, lo, hi, opts, floor)
     st = run.state
     for step in run.steps():
         if step.evaluated and on_iter:

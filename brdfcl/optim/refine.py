@@ -20,9 +20,19 @@ from brdfcl.optim.objective import Objective, Target
 from brdfcl.optim.options import FitOptions
 from brdfcl.optim.result import StageResult
 
+NOISE_FLOOR = 1e-5       # rmse_log below which a float32 fit is exact (its changes are rounding)
+
 
 def _quiet(line: str) -> None:
     pass
+
+
+def noise_floor(objective: Objective, target: Target, mats: np.ndarray) -> np.ndarray | None:
+    """Per row, the loss of an rmse_log of NOISE_FLOOR on ``target`` (float32 engines; None for
+    float64): where Levenberg-Marquardt stops an exact fit instead of stepping on rounding noise."""
+    if np.dtype(objective.engine.dtype) != np.float32:
+        return None
+    return NOISE_FLOOR ** 2 * np.asarray(target.scale, dtype=np.float64)[mats]
 
 
 @dataclass
@@ -73,7 +83,8 @@ def refine(objective: Objective, target: Target, x0: np.ndarray, *, options: Fit
     sp = objective.spaces
     n = x0.shape[0]
     log(f"local: Levenberg-Marquardt on {target.cells.index.size} cells per material")
-    run = LMRun(_JTJ(objective, target, np.arange(n)), sp.to_y(x0), *sp.y_bounds, options.lm)
+    run = LMRun(_JTJ(objective, target, np.arange(n)), sp.to_y(x0), *sp.y_bounds, options.lm,
+                noise_floor(objective, target, np.arange(n)))
     st = run.state
     start = st.loss.copy()
     held: list[int] = []            # materials finished with a dead lobe, revived at the end
@@ -114,7 +125,7 @@ def revive(objective: Objective, target: Target, held: StageResult, *, options: 
     mats = held.mat[np.array(owner, dtype=int)]
     log(f"local: {len(held.mat)} materials with a lobe at zero amplitude, {len(starts)} probes")
     st = levenberg_marquardt(_JTJ(objective, target, mats), sp.to_y(np.array(starts)), *sp.y_bounds,
-                             options.lm)
+                             options.lm, floor=noise_floor(objective, target, mats))
     xs = sp.from_y(st.x)
     for j, q in enumerate(owner):
         if np.isfinite(st.loss[j]) and st.loss[j] < out.fun[q]:
