@@ -218,20 +218,44 @@ _OPS = re.compile(r"(?<![eE])[-+*](?!=)|\b(?:fmin|fmax)\b")
 _DIV = re.compile(r"/(?!=)")
 _COMMENT = re.compile(r"/\*.*?\*/|//[^\n]*", re.S)
 _TRANS = re.compile(r"\b(exp|log|log1p|sqrt|cbrt|erfc|pow)\s*\(")
+_RENAME = re.compile(r"#define (\w+)\((\w+)\) (\w+)\(\2\)")          # log1p(x) -> brdfcl_log1p(x)
+_FUNC = re.compile(r"inline \w+ (?:__attribute__\(\(\w+\)\) )?(\w+)\([^)]*\)\s*\{(.*?)\n\}", re.S)
+_INT_STATEMENT = re.compile(r"^\s*(?:const\s+)?(?:int|long|cond_v)\d*\s[^;]*;", re.M)
+
+
+def _without_bit_casts(text):
+    """``text`` without the arguments of as_type() reinterpreting casts: integer arithmetic on a
+    float's bits (exponent handling in brdfcl_log1p), not flops."""
+    out, i = [], 0
+    for m in re.finditer(r"\bas_\w+\(", text):
+        if m.start() < i:
+            continue
+        out.append(text[i:m.start()])
+        depth, j = 1, m.end()
+        while depth:
+            depth += {"(": 1, ")": -1}.get(text[j], 0)
+            j += 1
+        out.append("BITS")
+        i = j
+    return "".join(out) + text[i:]
 
 
 def op_count(source, kernel="grad"):
     """(arithmetic ops, {builtin or 'div': calls}) per cell in a kernel's loop, from the generated
     source (comments removed).
 
-    Inline functions are expanded once per call site.  An estimate: compilers fold some
-    operations and the transcendentals cost many instructions each."""
+    Inline functions are expanded once per call site, a builtin renamed by a ``#define`` (log1p)
+    counted as the function it names; integer statements and the bits inside as_type() casts are
+    not flops.  An estimate: compilers fold some operations and the transcendentals cost many
+    instructions each."""
+    for name, _, target in _RENAME.findall(source):
+        source = re.sub(rf"\b{name}\s*\(", f"{target}(", _RENAME.sub("", source))
     body = source.split(f"void {kernel}(", 1)[1]
     body = _COMMENT.sub(" ", body.split("for (int v = v0", 1)[1].split("/* work-group reduction", 1)[0])
-    funcs = {m.group(1): m.group(2) for m in re.finditer(
-        r"inline \w+ (\w+)\([^)]*\)\s*\{(.*?)\n\}", _COMMENT.sub(" ", source), re.S)}
+    funcs = {m.group(1): m.group(2) for m in _FUNC.finditer(_COMMENT.sub(" ", source))}
 
     def count(text, depth=0):
+        text = _without_bit_casts(_INT_STATEMENT.sub("", text))
         text = re.sub(r"\[[^\]]*\]|\(size_t\)|\d+\.?\d*e[-+]\d+", "", text)
         ops = len(_OPS.findall(text))
         tr: dict = {"div": len(_DIV.findall(text))} if _DIV.search(text) else {}

@@ -20,6 +20,16 @@ typedef ${cond_v} cond_v;
 % endif
 
 ${common}
+% if real == "float":
+
+/* log1p written inline (brdfcl/kernels/log1p.py): SLEEF's is a division and double-float
+ * arithmetic, and an out-of-line call in the pip PoCL */
+% for src in log1p:
+${src}
+% endfor
+#undef log1p
+#define log1p(x) brdfcl_log1p(x)
+% endif
 
 % for src in sources:
 ${src}
