@@ -274,6 +274,7 @@ def op_count(source, kernel="grad"):
 
 
 KERNELS = ("loss", "grad", "jtj")
+CACHED = 160        # every 160th cell of one material: ~200 KB, the cache-resident timing
 BYTES_PER_CELL = 9 * 4          # 6 geometry + 3 data floats per cell-evaluation (float32)
 
 
@@ -302,10 +303,17 @@ def kernel_rooflines(args, names, data):
         cs = eng.upload(names, idx, data)
         V = np.tile(eng.model.defaults(), (len(names), 1))
         mats = np.arange(len(names))
+        # the same work on every CACHED-th cell of one material (~200 KB: in cache), as many rows
+        small = eng.upload(names[:1], idx[::CACHED], data[:1, :, ::CACHED])
+        v_small = np.tile(eng.model.defaults(), (len(names) * CACHED, 1))
+        m_small = np.zeros(len(names) * CACHED, dtype=np.int64)
         bw, peak, cost = roofline(eng, args.repeat)
+        mixes = instruction_mix(args, dev, len(names)) if dev is not None else {}
         for kernel in KERNELS:
             run = getattr(eng, kernel)
             sec = median_time(lambda run=run: run(cs, V, mats), args.repeat)
+            cells_small = len(names) * CACHED * idx[::CACHED].size
+            in_cache = cells_small / median_time(lambda run=run: run(small, v_small, m_small), args.repeat)
             ops, trans = op_count(eng.source, kernel)
             work = flops_per_cell(ops, trans, cost)
             achieved = len(names) * idx.size / sec * work        # flop/s
@@ -313,8 +321,9 @@ def kernel_rooflines(args, names, data):
             rows.append({"platform": eng.device.platform.version.split("  ")[0], "vw": eng.opt.vw,
                          "kernel": kernel, "ops": ops, "trans": trans, "work": work, "seconds": sec,
                          "achieved": achieved, "attainable": attainable, "peak": peak,
-                         "bandwidth": bw, "cost": cost,
-                         "bound": "compute" if work / BYTES_PER_CELL * bw > peak else "memory"})
+                         "bandwidth": bw, "cost": cost, "mix": mixes.get(kernel),
+                         "in_cache": in_cache / (len(names) * idx.size / sec)})
+            rows[-1]["bound"] = "memory" if rows[-1]["in_cache"] > 1.15 else "compute"
     return rows, len(names)
 
 
@@ -325,16 +334,20 @@ def kernel_roofline_lines(rows, n_mat, repeat):
              "source (comments removed, inline functions expanded, dead code not removed: an upper estimate for "
              "the loss kernel, which computes derivatives it does not use), in flops: each +, -, *, fmin, fmax one; "
              "each division and square root one (the divide unit works beside the FMA units); each other builtin "
-             "(SLEEF's FMA arithmetic) two per FMA of its measured cost. The FMA peak in flops (an FMA is two).", "",
+             "(SLEEF's FMA arithmetic) two per FMA of its measured cost. The FMA peak in flops (an FMA is two). "
+             f"In-cache rate: cells per second of the same kernel on every {CACHED}th cell of one material (~200 KB, "
+             "held in cache) over its rate on the full tables; bound: memory where the kernel runs more than 15% "
+             "faster in cache, else compute (measured so: the streaming read of a shared machine moves from run to "
+             "run, and with it the roofline's corner).", "",
              "| PoCL | width | kernel | ops + calls per cell | flops per cell | achieved (GFLOP/s) | "
-             "FMA peak (GFLOP/s) | of the roofline | of the FMA peak | bound |",
-             "|---|---|---|---|---|---|---|---|---|---|"]
+             "FMA peak (GFLOP/s) | of the roofline | of the FMA peak | in-cache rate | bound |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         calls = ", ".join(f"{k} {fn}" for fn, k in sorted(r["trans"].items()))
         lines.append(f"| {r['platform']} | {r['vw']} | {r['kernel']} | {r['ops']} ops, {calls} | {r['work']:.0f} | "
                      f"{r['achieved'] / 1e9:.1f} | {r['peak'] / 1e9:.1f} | "
                      f"{100 * r['achieved'] / r['attainable']:.0f}% | {100 * r['achieved'] / r['peak']:.0f}% | "
-                     f"{r['bound']} |")
+                     f"{r['in_cache']:.2f}x | {r['bound']} |")
     seen = {}
     for r in rows:
         seen.setdefault(r["platform"], r)
@@ -342,6 +355,100 @@ def kernel_roofline_lines(rows, n_mat, repeat):
     for plat, r in seen.items():
         lines.append(f"* {plat}: streaming read {r['bandwidth'] / 1e9:.1f} GB/s; each operation timed alone, in FMA "
                      "times beyond the FMA: " + ", ".join(f"{fn} {c:.1f}" for fn, c in r["cost"].items()))
+    return lines
+
+
+_MIX_BUILD = """
+import sys, numpy as np
+from brdfcl.device.engine import Engine, select_cells
+eng = Engine(sys.argv[1], real="float", metric=sys.argv[2])
+idx = select_cells()
+cs = eng.upload([f"m{i}" for i in range(int(sys.argv[3]))], idx, np.ones((int(sys.argv[3]), 3, idx.size), np.float32))
+V = np.tile(eng.model.defaults(), (cs.n_materials, 1))
+for k in sys.argv[4:]:
+    getattr(eng, k)(cs, V, np.arange(cs.n_materials))
+"""
+_INSN = re.compile(r"\s+([0-9a-f]+):\t(\S+)\s*(.*)")
+_FMA = ("vfmadd", "vfmsub", "vfnmadd", "vfnmsub")
+_ONE_FLOP = ("vmulps", "vaddps", "vsubps", "vdivps", "vsqrtps", "vminps", "vmaxps")
+
+
+def loop_mix(disassembly: str, kernel: str) -> dict | None:
+    """The instruction mix of a PoCL kernel's hot loop (the longest backward jump of its
+    ``_workgroup_fast`` function) from ``objdump -d``: FMAs, other arithmetic, other vector
+    instructions that take a vector ALU port (integer bit work, compares, blends, register moves),
+    pure loads and stores (register spills included); flops per cell as executed (an FMA two, every
+    other arithmetic instruction one, per lane), and the ceiling of that mix: its flops if every
+    vector ALU instruction took one slot of the FMA ports, as a fraction of the FMA peak."""
+    fn = f"<_pocl_kernel_{kernel}_workgroup_fast>:"
+    if fn not in disassembly:
+        return None
+    ins = [(int(m.group(1), 16), m.group(2), m.group(3)) for m in map(_INSN.match, disassembly.split(fn, 1)[1]
+           .split("\n\n", 1)[0].splitlines()) if m]
+    jumps = [(int(t.group(1), 16), a) for a, op, arg in ins if op.startswith("j")
+             for t in [re.match(r"([0-9a-f]+) <", arg)] if t and int(t.group(1), 16) < a]
+    if not jumps:
+        return None
+    lo, hi = max(jumps, key=lambda j: j[1] - j[0])
+    loop = [(op, arg) for a, op, arg in ins if lo <= a <= hi]
+    vec = [(op, arg) for op, arg in loop if op.startswith("v")]
+    fma = sum(op.startswith(_FMA) for op, _ in vec)
+    one = sum(op in _ONE_FLOP for op, _ in vec)
+    mem = sum(op.startswith(("vmov", "vbroadcast")) and "(" in arg for op, arg in vec)
+    alu = len(vec) - mem
+    return {"instructions": len(loop), "fma": fma, "arith": one, "other": alu - fma - one, "mem": mem,
+            "flops": 2 * fma + one, "ceiling": (2 * fma + one) / (2 * alu)}
+
+
+def instruction_mix(args, dev: str, n_mat: int) -> dict:
+    """{kernel: loop_mix} on one PoCL CPU device: its kernels built and run once in a child process
+    with a PoCL cache of its own (the only place PoCL leaves the machine code), then disassembled.
+    Empty where objdump or the machine code is missing (another OpenCL, another ISA)."""
+    import os
+    import shutil
+    import subprocess
+    import tempfile
+    if not shutil.which("objdump"):
+        return {}
+    with tempfile.TemporaryDirectory() as cache:
+        env = {**os.environ, "POCL_CACHE_DIR": cache, "BRDFCL_DEVICE": dev}
+        subprocess.run([sys.executable, "-c", _MIX_BUILD, args.model, args.metric, str(n_mat), *KERNELS],
+                       env=env, check=True, capture_output=True)
+        out = {}
+        for kernel in KERNELS:
+            for so in Path(cache).rglob(f"{kernel}.so"):
+                asm = subprocess.run(["objdump", "-d", "--no-show-raw-insn", str(so)], capture_output=True,
+                                     text=True).stdout
+                mix = loop_mix(asm, kernel)
+                if mix:
+                    out[kernel] = mix
+                    break
+        return out
+
+
+def mix_lines(rows) -> list[str]:
+    """The instruction-mix table: per PoCL and kernel, beside the roofline rows' timings."""
+    lines = ["## Instruction mix of the hot loops", "",
+             "The machine code PoCL built (`objdump -d` of its cached kernel, the loop of `_workgroup_fast`), one "
+             "iteration = one vector of cells: FMA instructions, other arithmetic (multiply, add, subtract, divide, "
+             "square root, min, max), other vector instructions on the ALU ports (integer bit work, compares, "
+             "blends, register moves), pure loads and stores (spills included). Executed flops per cell: an FMA "
+             "two, other arithmetic one. Ceiling: those flops if every vector ALU instruction took one FMA-port "
+             "slot, as a fraction of the FMA peak (the best this mix can do: multiplies and adds that are not "
+             "fused take a slot for one flop). Achieved: the executed flops at the roofline table's timing.", "",
+             "| PoCL | kernel | instructions | FMA | other arithmetic | other vector ALU | loads + stores | "
+             "executed flops per cell | ceiling of the mix | achieved, of the FMA peak |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        m = r.get("mix")
+        if not m:
+            continue
+        rate = r["achieved"] / r["work"] * m["flops"]
+        lines.append(f"| {r['platform']} | {r['kernel']} | {m['instructions']} | {m['fma']} | {m['arith']} | "
+                     f"{m['other']} | {m['mem']} | {m['flops']:.0f} | {100 * m['ceiling']:.0f}% | "
+                     f"{100 * rate / r['peak']:.0f}% |")
+    if len(lines) == 5:
+        return []
     return lines
 
 
@@ -446,6 +553,8 @@ def main(argv=None):
     sample = sample_data(paths, min(args.compare_materials or 24, n_mat))
     k_rows, n_k = kernel_rooflines(args, *sample)
     lines += [""] + kernel_roofline_lines(k_rows, n_k, args.repeat)
+    mix = mix_lines(k_rows)
+    lines += [""] + mix if mix else []
     cmp_rows = []
     if args.compare_materials and pocl_devices():
         cmp_rows, n_cmp = compare(args, *sample)
