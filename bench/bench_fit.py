@@ -235,8 +235,9 @@ def main(argv=None):
     ap.add_argument("--published", action="store_true",
                     help="instead: brdfcl's fits against the published SGD and ABC fits on every material of --data "
                          "(bench/compare_published.py; writes published.md and published.csv)")
-    ap.add_argument("--published-models", default=DEFAULT_MODEL,
-                    help="brdfcl models compared with --published (comma-separated; the first is the one ranked)")
+    ap.add_argument("--published-models", default=f"default,{DEFAULT_MODEL}",
+                    help="brdfcl models compared with --published (comma-separated; the first is the one ranked; "
+                         "'default': what fit-all fits when no model is given, each material's form chosen)")
     ap.add_argument("--stability", action="store_true", help="also run the numerical stability report")
     ap.add_argument("--report-only", action="store_true",
                     help="rebuild bench_fit.md and the plot from --out/fit_curves.csv without fitting")
@@ -310,8 +311,9 @@ def main(argv=None):
 
 
 def database_seconds(all_paths, args, devices):
-    """Median wall time of `brdfcl fit-all`'s fit of every file (reading included), per device
-    (None: the default device), keyed by the device's description."""
+    """Median wall time of `brdfcl fit-all`'s fit of every file (reading included) in --model, the
+    peers' model (forms=None: not the default's choice of forms), per device (None: the default
+    device), keyed by the device's description."""
     from bench_stages import device_name
 
     from brdfcl.app.run import fit_all
@@ -321,7 +323,7 @@ def database_seconds(all_paths, args, devices):
         times = []
         for _ in range(args.database_runs):
             t = time.perf_counter()
-            fit_all(all_paths, None, FitOptions(model=args.model, metric=args.metric, device=dev))
+            fit_all(all_paths, None, FitOptions(model=args.model, metric=args.metric, device=dev), forms=None)
             times.append(time.perf_counter() - t)
         out[name] = float(np.median(times))
         print(f"whole database on {name}: {out[name]:.1f} s (runs {', '.join(f'{x:.1f}' for x in times)})", flush=True)

@@ -33,57 +33,10 @@ import compare_published as cp  # noqa: E402
 from brdfcl import __version__  # noqa: E402
 from brdfcl.data.merl import list_database, read_merl  # noqa: E402
 from brdfcl.optim.fit import FitOptions, Fitter, load_batch  # noqa: E402
-from brdfcl.optim.forms import warm_start  # noqa: E402
+from brdfcl.optim.forms import abc_from_gtr, dielectric_from_schlick, warm_start  # noqa: E402
 from brdfcl.optim.selection import select  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
-
-
-def f0_of_eta(eta):
-    """A dielectric's reflectance at normal incidence."""
-    return ((eta - 1) / (eta + 1)) ** 2
-
-
-def start_rows(params: list[dict], model) -> np.ndarray:
-    """Start values (n, ``model``'s parameters) from parameter dicts: clipped to the bounds, the
-    model's defaults where a value is missing or not finite."""
-    x = np.array([[p.get(n, np.nan) for n in model.names] for p in params], dtype=np.float64)
-    x = np.clip(x.reshape(len(params), len(model.names)), model.lo, model.hi)
-    return np.where(np.isfinite(x), x, model.defaults()[None, :])
-
-
-def dielectric_from_schlick(source_results, model) -> np.ndarray:
-    """Start values of a dielectric-Fresnel form from the fits of the same form with Schlick: eta
-    from the mean F0 (F0 = ((eta - 1) / (eta + 1))^2, clipped to eta's bounds) and each channel's
-    amplitude scaled so that rho x F at normal incidence is kept; the rest copied."""
-    lo, hi = (model.lo[model.names.index("ct.eta")], model.hi[model.names.index("ct.eta")])
-    params = []
-    for r in source_results:
-        p = dict(r.params)
-        f0 = np.array([p.pop(f"ct.F0_{c}") for c in "rgb"])
-        s = np.sqrt(np.clip(f0.mean(), 1e-6, 0.999))
-        p["ct.eta"] = eta = float(np.clip((1 + s) / (1 - s), lo, hi))
-        for k, c in enumerate("rgb"):
-            p[f"ct.rho_{c}"] *= f0[k] / f0_of_eta(eta)
-        params.append(p)
-    return start_rows(params, model)
-
-
-def abc_from_gtr(source_results, model) -> np.ndarray:
-    """Start values of the ABC form (Schlick) from GTR fits: near the peak 1 - cos th ~ th^2 / 2 and
-    tan^2 th ~ th^2, so (1 + tan^2 / alpha^2)^-gamma ~ (1 + B (1 - cos th))^-C at B = 2 / alpha^2,
-    C = gamma (the tails match too: th^-2 gamma); a dielectric's eta gives its F0 in every channel
-    (same F at normal incidence)."""
-    params = []
-    for r in source_results:
-        p = dict(r.params)
-        alpha, gamma = p.pop("ct.alpha"), p.pop("ct.gamma")
-        p["ct.B"], p["ct.C"] = 2.0 / (alpha * alpha), gamma
-        if "ct.eta" in p:
-            f0 = f0_of_eta(p.pop("ct.eta"))
-            p.update({f"ct.F0_{c}": f0 for c in "rgb"})
-        params.append(p)
-    return start_rows(params, model)
 
 
 FORMS = {   # key: (model, the form it starts from (None: its own global search), how)

@@ -31,41 +31,60 @@ from brdfcl import __version__
 from brdfcl.data.geometry import DEFAULT_CUTOFF_DEG, table_geometry
 from brdfcl.data.merl import read_merl
 from brdfcl.device.engine import Engine, select_cells
+from brdfcl.model.compose import DEFAULT_MODEL, Model
 from brdfcl.model.lobes.cells import Cells
 from brdfcl.model.metrics import errors
 from brdfcl.optim.fit import FitOptions, Fitter, load_batch
+from brdfcl.optim.forms import DEFAULT_FORMS, FormFitter, form_keys
 
 PUBLISHED = ("sgd_bagher2012", "abc_low2012_microfacet_e2", "abc_low2012_smooth_e2")
 SHORT = {"sgd_bagher2012": "SGD", "abc_low2012_microfacet_e2": "ABC-mf", "abc_low2012_smooth_e2": "ABC-sm"}
 
 
-def fit_database(tables: list, spec: str) -> tuple[dict[str, np.ndarray], float]:
-    """brdfcl's fit of every table (one batch, default options): {material: parameter values},
-    and the wall time of the fit (extraction and upload included, reading the files not)."""
+DEFAULT = "default"
+"""What `brdfcl fit-all` fits when no model is given: DEFAULT_FORMS of the default model, each
+material's form chosen (brdfcl.optim.forms.FormFitter)."""
+
+
+def fit_database(tables: list, spec: str) -> tuple[dict[str, tuple[str, np.ndarray]], float]:
+    """brdfcl's fit of every table (one batch, default options; ``spec`` DEFAULT: the fit-all
+    default's choice of forms): {material: (its model, parameter values)}, and the wall time of the
+    fit (extraction and upload included, reading the files not)."""
     t0 = time.perf_counter()
-    f = Fitter(FitOptions(model=spec))
-    names, full, coarse = load_batch(tables, f)
-    res = f.fit(names, full, coarse)
+    if spec == DEFAULT:
+        ff = FormFitter(FitOptions(), form_keys(DEFAULT_MODEL, DEFAULT_FORMS))
+        names, full, coarse = load_batch(tables, ff.loader)
+        res = [r for r, _ in ff.fit(names, full, coarse)]
+    else:
+        f = Fitter(FitOptions(model=spec))
+        names, full, coarse = load_batch(tables, f)
+        res = f.fit(names, full, coarse)
     seconds = time.perf_counter() - t0
-    return {r.name: np.array([r.params[n] for n in f.model.names]) for r in res}, seconds
+    return {r.name: (r.model, np.array([r.params[n] for n in Model(r.model).names])) for r in res}, seconds
 
 
-def score(tables: list, specs: list[str], fits: dict[str, dict[str, np.ndarray]]) -> dict[str, dict[str, float]]:
-    """{material: {fit: rmse_log}} for brdfcl's models ``specs`` and every published model, on the
-    cells a default fit uses."""
+def score(tables: list, specs: list[str], fits: dict[str, dict[str, tuple[str, np.ndarray]]]) \
+        -> dict[str, dict[str, float]]:
+    """{material: {fit: rmse_log}} for brdfcl's fits ``specs`` (each material's model and values)
+    and every published model, on the cells a default fit uses."""
     g = table_geometry()
     idx = select_cells(DEFAULT_CUTOFF_DEG)
     cells = Cells.from_geometry(g, idx)
     wi, wo, w, cw = g.wi[idx], g.wo[idx], g.weight[idx], cells.ci
-    engines = {s: Engine(s, real="double") for s in specs}
-    sets = {s: e.upload([], idx, np.zeros((0, e.model.n_channels, idx.size), e.dtype)) for s, e in engines.items()}
+    engines: dict[str, tuple] = {}
+
+    def predict(model: str, values: np.ndarray) -> np.ndarray:
+        if model not in engines:
+            e = Engine(model, real="double")
+            engines[model] = (e, e.upload([], idx, np.zeros((0, e.model.n_channels, idx.size), e.dtype)))
+        e, cs = engines[model]
+        return e.predict(cs, values)[0]
     out: dict[str, dict[str, float]] = {}
     for table in tables:
         m = table.brdf()[:, idx].astype(np.float64)
         row = {}
         for s in specs:
-            pred = engines[s].predict(sets[s], fits[s][table.name])[0]
-            row[s] = errors(pred, m, w, cw)["rmse_log"]
+            row[s] = errors(predict(*fits[s][table.name]), m, w, cw)["rmse_log"]
         for name in PUBLISHED:
             if table.name in published.load(name):
                 row[name] = errors(published.evaluate(name, table.name, wi, wo), m, w, cw)["rmse_log"]
@@ -81,7 +100,9 @@ def compare(paths: list[Path], specs: list[str], out: Path, data_label: str) -> 
     for s in specs:
         fits[s], seconds[s] = fit_database(tables, s)
         print(f"{s}: {len(paths)} materials fitted in {seconds[s]:.1f} s", flush=True)
+    models = {s: {n: m for n, (m, _) in f.items()} for s, f in fits.items() if s == DEFAULT}
     run = {"specs": specs, "seconds": seconds, "scores": score(tables, specs, fits), "data": data_label,
+           "models": models,
            "cpu": cpu_name(), "date": str(datetime.date.today()), "version": __version__}
     (out / "published.json").write_text(json.dumps(run, indent=1))
     return report(out)
@@ -125,6 +146,13 @@ def report(out: Path) -> str:
              "Against the better of the SGD and ABC microfacet fits (the two models of issue 15):", "",
              head, "|---|---|---|---|---|"]
     lines += _summary(specs, scores, seconds, ("sgd_bagher2012", "abc_low2012_microfacet_e2"))
+    for s, chosen in run.get("models", {}).items():
+        count: dict[str, int] = {}
+        for m in chosen.values():
+            count[m] = count.get(m, 0) + 1
+        lines += ["", f"`{s}`: what `brdfcl fit-all` fits when no model is given, each material's reflection lobe "
+                  f"in the form of least penalised error among {DEFAULT_FORMS} (brdfcl.optim.forms); chosen: "
+                  + ", ".join(f"`{m}` {k}" for m, k in sorted(count.items())) + "."]
     lines += ["", "Against the best of all three published fits (ABC smooth surface too):", "", head,
               "|---|---|---|---|---|"]
     lines += _summary(specs, scores, seconds, PUBLISHED)

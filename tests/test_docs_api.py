@@ -58,6 +58,12 @@ def check_database(ns, work):
         assert (work / "fits" / f).is_file(), f
 
 
+def check_forms(ns, work):
+    result, record = ns["result"], ns["record"]
+    assert result.name == MATERIAL and record["form"] in ns["DEFAULT_FORMS"].split(",")
+    assert set(record["form_errors"]) == set(ns["DEFAULT_FORMS"].split(","))
+
+
 def check_analysis(ns, work):
     analyses = ns["analyses"]
     assert isinstance(analyses, list) and [a.name for a in analyses] == [MATERIAL]
@@ -78,7 +84,8 @@ def check_device(ns, work):
     assert ns["res"].success and ns["res"].name == MATERIAL
 
 
-CHECKS = [check_one_material, check_evaluate, check_database, check_analysis, check_cluster, check_device]
+CHECKS = [check_one_material, check_evaluate, check_database, check_forms, check_analysis, check_cluster,
+          check_device]
 
 
 def test_api_page_examples_run(demo_db, tmp_path, monkeypatch):

@@ -10,8 +10,8 @@ import pytest
 from brdfcl.data.samples import Channel, make_samples
 from brdfcl.model.compose import Model, ModelError
 from brdfcl.model.lobes.cells import Cells
-from brdfcl.optim.fit import FitOptions, Fitter
-from brdfcl.optim.forms import choose_form, form_variants, parse_forms
+from brdfcl.optim.fit import FitOptions
+from brdfcl.optim.forms import DEFAULT_FORMS, FormFitter, form_keys, form_variants, parse_forms
 
 LAMBDAS = (0.45, 0.55, 0.65)
 TRUTH = {   # true form -> its reflection lobe's shape parameters
@@ -34,6 +34,14 @@ def test_variants_keep_the_other_lobes_and_the_shadowing_word():
     assert parse_forms("GGX, gtr :dielectric") == (("ggx", "gtr"), ("dielectric",))
     with pytest.raises(ModelError, match="unknown ndf foo"):
         parse_forms("ggx,foo")
+    # a list of pairs (more than one ':') against every NDF with every Fresnel
+    pairs = form_keys("diffuse+diffraction+ggx", "gtr:dielectric, ABC:schlick")
+    assert pairs == {"gtr:dielectric": "diffuse+diffraction:hp:none+gtr:smith:dielectric",
+                     "abc:schlick": "diffuse+diffraction:hp:none+abc:smith:schlick"}
+    assert set(form_keys("diffuse+ggx", "ggx,gtr:schlick")) == {"ggx:schlick", "gtr:schlick"}
+    assert set(form_keys("diffuse+diffraction+ggx", DEFAULT_FORMS)) == set(DEFAULT_FORMS.split(","))
+    with pytest.raises(ModelError, match="NDF:FRESNEL pairs"):
+        form_keys("diffuse+ggx", "gtr:dielectric,abc,ggx:schlick")
 
 
 def _material(form, seed):
@@ -63,13 +71,10 @@ def test_the_true_form_of_each_synthetic_material_is_chosen():
     samples = [_material(form, seed) for seed, form in enumerate(TRUTH)]
     specs = form_variants("diffuse+ggx:smith:schlick", ("ggx", "gtr", "beckmann"), ("schlick", "dielectric"))
     assert len(specs) == 6
-    errors: dict = {s.name: {} for s in samples}
-    for key, spec in specs.items():
-        for r in Fitter(FitOptions(model=spec), lambdas=LAMBDAS).fit_samples(samples):
-            errors[r.name][key] = r.errors["rmse_log"]
-    for s in samples:
-        chosen, pen = choose_form(errors[s.name], specs)
-        assert chosen == s.name, (s.name, {k: round(v, 5) for k, v in pen.items()})
+    chosen = FormFitter(FitOptions(), specs, lambdas=LAMBDAS).fit_samples(samples)
+    for s, (res, record) in zip(samples, chosen):
+        pen = {k: round(v["penalised"], 5) for k, v in record["form_errors"].items()}
+        assert record["form"] == s.name and res.model == specs[s.name] and res.name == s.name, (s.name, pen)
 
 
 def test_fit_all_records_the_chosen_form(demo_db, tmp_path):
@@ -88,22 +93,30 @@ def test_fit_all_records_the_chosen_form(demo_db, tmp_path):
     assert set(rough["form_errors"]) == {"ggx:schlick", "ggx:dielectric", "beckmann:schlick", "beckmann:dielectric"}
     assert rough["options"]["forms"] == sorted(rough["form_errors"])
     bad = subprocess.run([sys.executable, "-m", "brdfcl.app.cli", "fit-all", str(demo_db), "--out", str(tmp_path / "b"),
-                          "--forms", "ggx,beckmann"], capture_output=True, text=True)
+                          "--forms", "ggx,foo"], capture_output=True, text=True)
     assert bad.returncode != 0 and "Traceback" not in bad.stderr
-    assert "--forms chooses among forms in the lobe selection: give it with --select-lobes" in bad.stderr
+    assert "forms 'ggx,foo': unknown ndf foo" in bad.stderr
 
 
 def test_a_containing_form_starts_from_the_contained_forms_fits():
     from types import SimpleNamespace
 
-    from brdfcl.optim.forms import nested_source, nesting_order, warm_start
-    keys = ["gtr:dielectric", "ggx:dielectric", "gtr:schlick", "beckmann:schlick", "ggx:schlick"]
-    order = sorted(keys, key=nesting_order)
-    assert order.index("ggx:schlick") < order.index("gtr:schlick")
-    assert order.index("ggx:dielectric") < order.index("gtr:dielectric")
-    assert nested_source("gtr:schlick", {"ggx:schlick": []}) == "ggx:schlick"
-    assert nested_source("gtr:schlick", {"ggx:dielectric": []}) is None       # another Fresnel: not contained
-    assert nested_source("beckmann:schlick", {"ggx:schlick": []}) is None
+    from brdfcl.optim.forms import dielectric_from_schlick, fit_order, start_source, warm_start
+    keys = ["abc:schlick", "gtr:dielectric", "ggx:dielectric", "gtr:schlick", "beckmann:schlick", "ggx:schlick"]
+    order = fit_order(keys)
+    assert sorted(order) == sorted(keys)
+    for before, after in (("ggx:schlick", "gtr:schlick"), ("ggx:dielectric", "gtr:dielectric"),
+                          ("gtr:schlick", "gtr:dielectric"), ("gtr:dielectric", "abc:schlick")):
+        assert order.index(before) < order.index(after)
+    ok, failed = [SimpleNamespace(success=True)], [SimpleNamespace(success=False)]
+    assert start_source("gtr:schlick", {"ggx:schlick": ok}) == ("ggx:schlick", warm_start)
+    assert start_source("gtr:schlick", {"ggx:dielectric": ok}) is None        # another Fresnel: not contained
+    assert start_source("gtr:schlick", {"ggx:schlick": failed}) is None       # a failed fit is no start
+    assert start_source("beckmann:schlick", {"ggx:schlick": ok}) is None
+    assert start_source("abc:schlick", {"gtr:dielectric": ok, "gtr:schlick": ok})[0] == "gtr:dielectric"
+    assert start_source("beckmann:dielectric", {"beckmann:schlick": ok}) == ("beckmann:schlick",
+                                                                             dielectric_from_schlick)
+    assert start_source("gtr:dielectric", {"ggx:dielectric": ok, "gtr:schlick": ok})[0] == "ggx:dielectric"
     gtr = Model("diffuse+gtr:smith:schlick")
     fit = SimpleNamespace(params={n: 0.3 for n in Model("diffuse+ggx:smith:schlick").names})
     broken = SimpleNamespace(params={n: np.nan for n in Model("diffuse+ggx:smith:schlick").names})
@@ -127,3 +140,59 @@ def test_fit_all_refines_gtr_from_the_ggx_fits(demo_db, tmp_path):
     err = {k: v["rmse_log"] for k, v in doc["form_errors"].items()}
     assert err["ggx:schlick"] > 1e-4                                         # not at the float32 floor
     assert err["gtr:schlick"] <= err["ggx:schlick"] * (1 + 1e-3)            # contains it, starts at its optimum
+
+
+def test_start_conversions_keep_the_lobe_at_normal_incidence_and_near_the_peak():
+    """Schlick -> dielectric: eta from the mean F0, rho x F(0) kept per channel; GTR -> ABC:
+    B = 2 / alpha^2, C = gamma, a dielectric's F(0) as every channel's F0."""
+    from types import SimpleNamespace
+
+    from brdfcl.optim.forms import abc_from_gtr, dielectric_from_schlick, f0_of_eta
+    schlick = Model("diffuse+gtr:smith:schlick")
+    p = dict(zip(schlick.names, schlick.defaults()))
+    p.update({"ct.F0_r": 0.04, "ct.F0_g": 0.05, "ct.F0_b": 0.06, "ct.rho_r": 1.0, "ct.rho_g": 2.0, "ct.rho_b": 3.0})
+    diel = Model("diffuse+gtr:smith:dielectric")
+    x = dict(zip(diel.names, dielectric_from_schlick([SimpleNamespace(params=p)], diel)[0]))
+    assert f0_of_eta(x["ct.eta"]) == pytest.approx(0.05)
+    for c, f0, rho in (("r", 0.04, 1.0), ("g", 0.05, 2.0), ("b", 0.06, 3.0)):
+        assert x[f"ct.rho_{c}"] * f0_of_eta(x["ct.eta"]) == pytest.approx(rho * f0)
+    gtr = {**x, "ct.alpha": 0.1, "ct.gamma": 1.3, "ct.eta": 1.5}
+    abc = Model("diffuse+abc:smith:schlick")
+    y = dict(zip(abc.names, abc_from_gtr([SimpleNamespace(params=gtr)], abc)[0]))
+    assert y["ct.B"] == pytest.approx(200.0) and y["ct.C"] == pytest.approx(1.3)
+    assert all(y[f"ct.F0_{c}"] == pytest.approx(0.04) for c in "rgb")
+    assert all(y[f"ct.rho_{c}"] == gtr[f"ct.rho_{c}"] for c in "rgb")
+
+
+def test_default_fit_all_chooses_among_the_default_forms(demo_db, tmp_path):
+    """No --model: each material fitted in DEFAULT_FORMS, the least penalised kept and recorded;
+    --model (or --forms none): the model as given."""
+    src = tmp_path / "in"
+    src.mkdir()
+    for name in ("synth-smooth-plastic", "synth-rough-metal"):
+        (src / f"{name}.binary").symlink_to(demo_db / f"{name}.binary")
+    r = subprocess.run([sys.executable, "-m", "brdfcl.app.cli", "fit-all", str(src), "--out", str(tmp_path / "o"),
+                        "--no-report"], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert "form abc:schlick: fitted 2 materials from the gtr:dielectric fits (no global search)" in r.stderr
+    keys = DEFAULT_FORMS.split(",")
+    for name in ("synth-smooth-plastic", "synth-rough-metal"):
+        doc = json.loads((tmp_path / "o" / f"{name}.json").read_text())
+        assert doc["form"] in keys and set(doc["form_errors"]) == set(keys)
+        assert doc["model"] == form_keys("diffuse+diffraction+ggx", DEFAULT_FORMS)[doc["form"]]
+        pen = {k: v["penalised"] for k, v in doc["form_errors"].items()}
+        assert doc["form"] == min(pen, key=pen.get)
+        assert doc["errors"]["rmse_log"] == doc["form_errors"][doc["form"]]["rmse_log"]
+        assert doc["options"]["forms"] == sorted(keys)
+    plastic = json.loads((tmp_path / "o" / "synth-smooth-plastic.json").read_text())
+    assert plastic["form"] == "gtr:dielectric"        # a dielectric: one index, not three F0
+    from brdfcl.report.view.pages import Entry, comparison_page, material_page
+    entry = Entry.from_document(plastic)              # the report shows the choice
+    assert "form <b>gtr:dielectric</b>" in material_page(entry, {}, tmp_path)
+    assert "<th class='l'>form</th>" in comparison_page([entry], "fits", tmp_path)
+    r = subprocess.run([sys.executable, "-m", "brdfcl.app.cli", "fit-all", str(src), "--out", str(tmp_path / "g"),
+                        "--no-report", "--quiet", "--model", "diffuse+diffraction+ggx"], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr[-2000:]
+    doc = json.loads((tmp_path / "g" / "synth-rough-metal.json").read_text())
+    assert "form" not in doc and "forms" not in doc["options"]
+    assert doc["model"] == "diffuse+diffraction:hp:none+ggx:smith:schlick"

@@ -89,6 +89,13 @@ def _database_job(args):
     return source, fit_options(args), log
 
 
+def _forms(args) -> str:
+    """--forms as given; else the default choice, unless a model or a fixed parameter was asked for."""
+    if args.forms is not None:
+        return args.forms
+    return "none" if "model" in vars(args) or "fix" in vars(args) else "default"
+
+
 def cmd_fit_all(args):
     from brdfcl.app.run import fit_all
     source, opts, log = _database_job(args)
@@ -100,7 +107,7 @@ def cmd_fit_all(args):
         report = fit_all(source, args.out, opts, batch=args.batch, export=args.export_merl,
                          quiet=args.quiet, log=log, client=client, select_lobes=args.select_lobes,
                          free_peak=args.free_peak, overwrite=args.overwrite, pages=not args.no_report,
-                         rgb=args.rgb, forms=args.forms)
+                         rgb=args.rgb, forms=_forms(args))
     finally:
         if client is not None:
             client.close()
@@ -233,9 +240,12 @@ def build_parser():
                         "(without it such results stop the run)")
     p.add_argument("--select-lobes", action="store_true",
                    help="fit with and without each lobe and keep what the material needs (brdfcl analyze)")
-    p.add_argument("--forms", default=None, metavar="NDFS[:FRESNELS]",
-                   help="with --select-lobes: choose each material's reflection-lobe form among these, e.g. "
-                        "ggx,gtr,beckmann:schlick,dielectric (by the same penalised error)")
+    from brdfcl.optim.forms import DEFAULT_FORMS
+    p.add_argument("--forms", default=None, metavar="FORMS",
+                   help="fit each material's reflection lobe in each of these forms and keep the one of least "
+                        "penalised error (as --select-lobes chooses lobes): NDF:FRESNEL pairs, e.g. "
+                        "gtr:dielectric,abc:schlick, or every NDF with every Fresnel, e.g. ggx,gtr:schlick,dielectric; "
+                        f"'none': the model as given (default: {DEFAULT_FORMS} unless --model or --fix is given)")
     p.add_argument("--workers", type=int, default=0, help="fit on a local Dask cluster of N workers")
     p.add_argument("--scheduler", default=None, help="fit on the Dask cluster at this address")
     p.set_defaults(func=cmd_fit_all)

@@ -30,6 +30,7 @@ from brdfcl.app.runner import Runner
 from brdfcl.data.inputs import FileReader
 from brdfcl.data.merl import material_name
 from brdfcl.optim import fit
+from brdfcl.optim.forms import FormFitter
 
 
 class WorkerError(RuntimeError):
@@ -90,20 +91,25 @@ def make_client(scheduler=None, workers=0, log_level=logging.CRITICAL):
 _WORKER_FITTERS: dict = {}
 
 
-def fit_chunk(paths, opts):
-    """Task body: fit a chunk on this worker; returns (results, {path: reason skipped}, failure),
-    failure None or (one line: worker and cause, the worker's traceback as text)."""
+def fit_chunk(paths, opts, forms=None):
+    """Task body: fit a chunk on this worker (``forms``: {key: model spec}, each material's form
+    chosen as brdfcl.optim.forms.FormFitter does); returns ([(result, what NAME.json records beside
+    it)], {path: reason skipped}, failure), failure None or (one line: worker and cause, the
+    worker's traceback as text)."""
     try:
-        key = (repr(opts), os.environ.get("BRDFCL_DEVICE"))
+        key = (repr(opts), repr(forms), os.environ.get("BRDFCL_DEVICE"))
         fitter = _WORKER_FITTERS.get(key)
         if fitter is None:                  # fit.Fitter looked up now: tests put a failing one there
-            fitter = _WORKER_FITTERS[key] = fit.Fitter(opts)       # one context and program per worker
+            # one context and program per worker (and form)
+            fitter = _WORKER_FITTERS[key] = fit.Fitter(opts) if not forms else FormFitter(opts, forms)
         skipped = {}
 
         def on_error(item, e):
             skipped[str(item)] = str(e)
-        names, full, coarse = fit.load_batch([FileReader(p) for p in paths], fitter, on_error)
-        results = fitter.fit(names, full, coarse) if names else []
+        loader = fitter if isinstance(fitter, fit.Fitter) else fitter.loader
+        names, full, coarse = fit.load_batch([FileReader(p) for p in paths], loader, on_error)
+        done = fitter.fit(names, full, coarse) if names else []
+        results = [r if isinstance(r, tuple) else (r, None) for r in done]
         return results, skipped, None
     except Exception as e:          # pyopencl errors do not even pickle: send text
         return [], {}, (f"on worker {_worker_name()}: {describe_error(e)}", traceback.format_exc())
@@ -124,8 +130,10 @@ def _cancel(client, futures):
         pass
 
 
-def fit_on_cluster(client, run: Runner, paths: list[str], opts: fit.FitOptions, batch: int) -> None:
-    """Spread ``paths`` over the cluster's workers; ``run`` writes each chunk's results as it completes."""
+def fit_on_cluster(client, run: Runner, paths: list[str], opts: fit.FitOptions, batch: int,
+                   forms: dict | None = None) -> None:
+    """Spread ``paths`` over the cluster's workers (``forms``: as `fit_chunk`); ``run`` writes each
+    chunk's results as it completes."""
     # local: Dask is optional (the "cluster" extra); a caller with a client has it
     from dask.distributed import as_completed
 
@@ -133,7 +141,7 @@ def fit_on_cluster(client, run: Runner, paths: list[str], opts: fit.FitOptions, 
     size = max(1, min(batch, math.ceil(len(paths) / (2 * n_workers))))
     chunks = [paths[i:i + size] for i in range(0, len(paths), size)]
     run.log(f"cluster: {len(chunks)} chunks of up to {size} materials on {n_workers} workers")
-    futures = [client.submit(fit_chunk, c, opts, pure=False, retries=2) for c in chunks]
+    futures = [client.submit(fit_chunk, c, opts, forms, pure=False, retries=2) for c in chunks]
     chunk_of = {f.key: c for f, c in zip(futures, chunks)}
     with run.tracking(len(paths)):
         for fut in as_completed(futures):
@@ -149,5 +157,5 @@ def fit_on_cluster(client, run: Runner, paths: list[str], opts: fit.FitOptions, 
                 raise WorkerError(f"{what} failed {failure[0]}") from RemoteTraceback(failure[1])
             for path, why in skipped.items():
                 run.skip(path, why)
-            for r in results:
-                run.fitted(r)
+            for r, record in results:
+                run.fitted(r, record)

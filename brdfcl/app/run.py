@@ -40,8 +40,8 @@ from brdfcl.data.inputs import (
 from brdfcl.data.merl import material_name
 from brdfcl.data.readers import read_samples
 from brdfcl.data.rgb import to_rgb
-from brdfcl.optim.fit import FitOptions, Fitter
-from brdfcl.optim.forms import choose_form, form_variants, nested_source, nesting_order, parse_forms, warm_start
+from brdfcl.optim.fit import FitOptions
+from brdfcl.optim.forms import FormFitter, form_keys, resolve
 from brdfcl.report.writers import FIT, IMPLEMENTED_WRITERS, Job, export_writers
 
 # This module's API, with the names of the runner and of brdfcl.data.inputs callers import from here.
@@ -52,7 +52,7 @@ __all__ = ["FileReader", "InputOverwriteError", "Models", "OPTION_FLAGS", "Progr
 
 def fit_all(source, out=None, options: FitOptions | None = None, batch=100, export: bool | str | Iterable[str] = False,
             quiet=True, log=None, client=None, select_lobes=False, free_peak=False, overwrite=False,
-            pages=False, rgb=False, forms: str | None = None, **kw) -> RunReport:
+            pages=False, rgb=False, forms: str | None = "default", **kw) -> RunReport:
     """Fit every material of a database; write results to ``out`` if given.
 
     ``source``: folder, file or list of files.  ``options`` or keyword arguments
@@ -72,13 +72,19 @@ def fit_all(source, out=None, options: FitOptions | None = None, batch=100, expo
     tables.  Their spectral fits have no MERL / BRDF Explorer export (an RGB fit has); their report
     page shows the samples against the fit in the plane of incidence.
 
-    ``forms`` (with ``select_lobes``): the candidate forms of the reflection lobe,
-    ``NDF[,NDF...][:FRESNEL[,FRESNEL...]]`` (brdfcl.optim.forms); each material's form is chosen by
-    the penalised error before its lobes are, and recorded in NAME.json (``form``, ``form_errors``)."""
+    ``forms``: the candidate forms of the reflection lobe (brdfcl.optim.forms): each material is
+    fitted in each and the form of least penalised error kept, recorded in NAME.json (``form``,
+    ``form_errors``); with ``select_lobes`` its lobes are then compared in that form.  A list of
+    NDF:FRESNEL pairs (``gtr:dielectric,abc:schlick``) or ``NDF[,NDF...][:FRESNEL[,FRESNEL...]]``;
+    ``"default"``: brdfcl.optim.forms.DEFAULT_FORMS for the default model with nothing fixed (a
+    ``model`` keyword is a model asked for: it is fitted as given); None or ``"none"``: the model as
+    given."""
     opts = options or FitOptions(**kw)
-    if forms is not None and not select_lobes:
-        raise ValueError("--forms chooses among forms in the lobe selection: give it with --select-lobes")
-    form_specs = form_variants(opts.model, *parse_forms(forms)) if forms is not None else None
+    if forms == "default" and "model" in kw:
+        forms = None
+    explicit = resolve(forms, replace(opts, model="", fixed={})) is not None     # asked for, not the default
+    forms = resolve(forms, opts)
+    form_specs = form_keys(opts.model, forms) if forms is not None else None
     if select_lobes:        # what the lobe comparison fits with (brdfcl.analysis.analyze), so what is recorded
         opts = replace(opts, fixed={}, ct_peak=not free_peak)
     models = Models(opts, select_lobes=select_lobes, free_peak=free_peak, forms=form_specs)
@@ -87,8 +93,8 @@ def fit_all(source, out=None, options: FitOptions | None = None, batch=100, expo
                  exports=_exports(export), pages=pages, model=models.model, engine=models.engine)
     todo = resume(run, recorded, overwrite) if run.job is not None else run.paths
     samples = [p for p in todo if not is_table(p)]
-    if samples and (client is not None or (select_lobes and (forms is not None or rgb))):
-        how = "a cluster" if client is not None else "--forms" if forms is not None else "--rgb and --select-lobes"
+    if samples and (client is not None or (select_lobes and (explicit or rgb))):
+        how = "a cluster" if client is not None else "--forms" if explicit else "--rgb and --select-lobes"
         raise ValueError(f"{samples[0]}: scattered samples are fitted here, without {how} (not yet supported)")
     if samples and not select_lobes:      # --select-lobes analyses them with the tables (brdfcl.app.analyze)
         todo = [p for p in todo if is_table(p)]
@@ -96,7 +102,7 @@ def fit_all(source, out=None, options: FitOptions | None = None, batch=100, expo
     if select_lobes:
         _fit_selected(run, todo, opts, batch, form_specs)
     elif client is not None:
-        fit_on_cluster(client, run, todo, opts, batch)
+        fit_on_cluster(client, run, todo, opts, batch, form_specs)
     else:
         _fit_here(run, todo, models, batch)
     return run.finish()
@@ -123,11 +129,12 @@ def _exports(export: bool | str | Iterable[str]) -> frozenset[str]:
 
 
 def _fit_here(run: Runner, todo: list[str], models: Models, batch: int) -> None:
-    """Fit in this process, a batch at a time, each result written as it finishes."""
+    """Fit in this process, a batch at a time, each result written as it finishes (with forms: as
+    its form is chosen)."""
     with run.tracking(len(todo)):
         for part in run.batches(todo, batch):
-            fitter = models.main_fitter()
-            loaded = run.load(part, fitter)
+            fitter = models.main_fitter() if models.forms is None else models.form_fitter()
+            loaded = run.load(part, models.loader())
             if loaded is not None:
                 names, full, coarse, _ = loaded
                 fitter.fit(names, full, coarse, on_result=run.fitted, log=run.log)
@@ -150,7 +157,7 @@ def _fit_samples(run: Runner, paths: list[str], models: Models, batch: int, rgb:
         groups.setdefault(tuple(float(x) for x in s.wavelengths), []).append(s)
     with run.tracking(sum(len(g) for g in groups.values())):
         for lambdas, group in groups.items():
-            fitter = models.sample_fitter(lambdas)
+            fitter = models.sample_fitter(lambdas) if models.forms is None else models.form_fitter(lambdas)
             for part in run.batches(group, batch):
                 run.log(f"batch of {len(part)} sample sets loaded ({len(lambdas)} channels)")
                 fitter.fit_samples(part, on_result=run.fitted, log=run.log)
@@ -164,7 +171,14 @@ def _fit_selected(run: Runner, todo: list[str], opts: FitOptions, batch: int, fo
     if not todo:
         return
     with run.tracking(len(todo)):
-        chosen = _choose_forms(run, todo, opts, batch, forms) if forms else {opts.model: (todo, {})}
+        chosen: dict = {opts.model: (todo, {})}
+        if forms:
+            samples = [p for p in todo if not is_table(p)]       # only with the default forms (see fit_all)
+            chosen = _choose_forms(run, [p for p in todo if is_table(p)], opts, batch, forms)
+            if samples:
+                run.log("scattered samples: their lobes are compared in the model's own form (forms are chosen "
+                        "for MERL tables under --select-lobes)")
+                chosen.setdefault(opts.model, ([], {}))[0].extend(samples)
         for spec, (paths, info) in chosen.items():
             def done(a: Any, info: dict = info) -> None:
                 run.fitted(a.final, {"selected_by": "lobe comparison", "verdict": a.verdict, **info.get(a.name, {})})
@@ -174,37 +188,20 @@ def _fit_selected(run: Runner, todo: list[str], opts: FitOptions, batch: int, fo
 
 def _choose_forms(run: Runner, todo: list[str], opts: FitOptions, batch: int, forms: dict) -> dict:
     """{model spec: (paths, {material: what NAME.json records of the choice})}: every material fitted
-    in every form (one load of each batch), the form of least penalised error chosen."""
+    in every form (brdfcl.optim.forms.FormFitter, one load of each batch), the least penalised kept."""
     chosen: dict[str, tuple[list, dict]] = {}
-    fitters = {k: Fitter(replace(opts, model=s)) for k, s in forms.items()}
-    first = next(iter(fitters.values()))
+    fitter = FormFitter(opts, forms)
     for part in run.batches(todo, batch):
-        loaded = run.load(part, first)
+        loaded = run.load(part, fitter.loader)
         if loaded is None:
             continue
         names, full, coarse, paths = loaded
-        errors: dict[str, dict[str, float]] = {n: {} for n in names}
-        fitted: dict[str, list] = {}
-        for key in sorted(fitters, key=nesting_order):
-            f = fitters[key]
-            source = nested_source(key, fitted)
-            if source is not None and not all(r.success for r in fitted[source]):
-                source = None           # a failed contained fit is no start: this form searches on its own
-            start = None if source is None else warm_start(fitted[source], f.model)
-            fitted[key] = f.fit(names, full, coarse, log=run.log, start=start)
-            for r in fitted[key]:
-                if r.success:
-                    errors[r.name][key] = r.errors["rmse_log"]
-            how = f" from the {source} fits (no global search)" if source else ""
-            run.log(f"form {key}: fitted {len(names)} materials{how}")
-        for name, path in zip(names, paths):
-            if not errors[name]:
+        for (res, record), path in zip(fitter.fit(names, full, coarse, log=run.log), paths):
+            if record["form"] is None:
                 run.skip(path, f"{path}: no form could be fitted")
                 continue
-            key, pen = choose_form(errors[name], {k: forms[k] for k in errors[name]})
-            paths_, info = chosen.setdefault(forms[key], ([], {}))
+            paths_, info = chosen.setdefault(forms[record["form"]], ([], {}))
             paths_.append(path)
-            info[name] = {"form": key, "form_errors": {k: {"rmse_log": errors[name][k], "penalised": pen[k]}
-                                                       for k in errors[name]}}
-            run.log(f"{name}: form {key}")
+            info[res.name] = record
+            run.log(f"{res.name}: form {record['form']}")
     return chosen

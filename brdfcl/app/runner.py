@@ -31,6 +31,7 @@ from brdfcl.data.merl import material_name
 from brdfcl.device.engine import Engine
 from brdfcl.model.compose import Model
 from brdfcl.optim.fit import FitOptions, Fitter, load_batch
+from brdfcl.optim.forms import FormFitter
 from brdfcl.report.files import remove_stale_temporaries
 from brdfcl.report.output import recorded_options
 from brdfcl.report.writers import Item, Job, Writer, writers_for
@@ -89,7 +90,8 @@ class Models:
                  free_peak: bool = False, forms: dict | None = None):
         self.opts = opts
         self.options = recorded_options(opts, select_lobes, free_peak)
-        if forms:           # --forms: the candidates the choice was among (only then recorded)
+        self.forms = forms or None
+        if forms:           # the candidates the choice was among (only then recorded)
             self.options["forms"] = sorted(forms)
         main = Model(opts.model, fixed=opts.fixed)
         self.main = main.spec
@@ -97,6 +99,7 @@ class Models:
         self._engines = {main.spec: engine} if engine is not None else {}
         self._fitter: Fitter | None = None
         self._fitters: dict[tuple, Fitter] = {}
+        self._form_fitters: dict[tuple, FormFitter] = {}
 
     def main_fitter(self) -> Fitter:
         """The Fitter of the run's model; exports of that model share its engine (built once)."""
@@ -104,6 +107,21 @@ class Models:
             self._fitter = Fitter(self.opts, engine=self._engines.get(self.main))
             self._engines[self.main] = self._fitter.engine
         return self._fitter
+
+    def form_fitter(self, lambdas: tuple | None = None) -> FormFitter:
+        """The FormFitter of the run's forms (for tables, or for scattered samples with these bands;
+        built once each); exports of a form share its engine."""
+        key = ("forms", None if lambdas is None else tuple(lambdas))
+        if key not in self._form_fitters:
+            ff = self._form_fitters[key] = FormFitter(self.opts, self.forms or {}, lambdas=lambdas)
+            if lambdas is None:
+                for k, f in ff.fitters.items():
+                    self._engines.setdefault(ff.forms[k], f.engine)
+        return self._form_fitters[key]
+
+    def loader(self) -> Fitter:
+        """The Fitter whose cells a batch of tables is loaded on."""
+        return self.main_fitter() if self.forms is None else self.form_fitter().loader
 
     def model(self, spec: str, lambdas: tuple | None = None) -> Model:
         """The model of a spec (with the run's fixed parameters for its own), at ``lambdas`` (one

@@ -112,11 +112,12 @@ class Fitter:
         return names, Targets(target, target), data
 
     def fit_samples(self, samples: Sequence, on_result: Callable[[FitResult], None] | None = None,
-                    log: Callable[[str], None] = _quiet) -> list[FitResult]:
-        """Fit scattered measurements (Samples with the model's channels), all in one batch."""
+                    log: Callable[[str], None] = _quiet, start: np.ndarray | None = None) -> list[FitResult]:
+        """Fit scattered measurements (Samples with the model's channels), all in one batch;
+        ``start`` as in `fit`."""
         t0 = time.perf_counter()
         names, targets, data = self.sample_targets(samples)
-        return self.run(names, targets, data, t0, on_result, log)
+        return self.run(names, targets, data, t0, on_result, log, start)
 
     def run(self, names: list[str], t: Targets, full_data: np.ndarray, t0: float,
             on_result: Callable[[FitResult], None] | None = None,

@@ -1,28 +1,35 @@
 """Which form a reflection lobe takes: its NDF and its Fresnel term, chosen per material.
 
 The talk fixes the lobes (diffuse, diffraction, Cook-Torrance) but not the form of the
-Cook-Torrance lobe: a highlight with a power-law tail wants a heavy-tailed NDF (GTR), a coated
-dielectric a dielectric Fresnel.  ``form_variants`` rewrites a model with every candidate form of
-its reflection lobes (the shadowing word kept: ``smith`` becomes the chosen NDF's own Smith term);
-each is fitted, and the form is chosen by the penalised error of the lobe comparison
-(brdfcl.optim.selection): rmse_log x (1 + 0.02 x free parameters), so a form with an extra
-parameter (GTR's tail exponent) is kept only where it earns it, and a form with fewer (one
-refractive index instead of an F0 per channel) wins ties.  A form whose NDF contains another's
-(``NESTED``: GTR at gamma = 2 is GGX) starts from that form's fits instead of a global search.
+Cook-Torrance lobe: a highlight with a power-law tail wants a heavy-tailed NDF (GTR, ABC), a
+coated dielectric a dielectric Fresnel.  ``form_variants`` rewrites a model with every candidate
+form of its reflection lobes (the shadowing word kept: ``smith`` becomes the chosen NDF's own Smith
+term); ``FormFitter`` fits a batch in each and keeps, per material, the form of least penalised
+error (brdfcl.optim.selection): rmse_log x (1 + 0.02 x free parameters), so a form with more
+parameters is kept only where it earns them, and one with fewer (one refractive index instead of
+an F0 per channel) wins ties.  A form that can start from another's fits (``STARTS``: GTR at
+gamma = 2 is GGX; ABC near its peak is a GTR) is refined from them, without a global search.
+
+``DEFAULT_FORMS`` is what ``brdfcl fit-all`` chooses among when no model is given: on the 80
+development proxies it is no worse than the published SGD and ABC fits on any, median 0.70 of the
+better of them (bench/bench_forms.py, bench/results/forms_published.md).
 """
 from __future__ import annotations
+
+import re
+from collections.abc import Callable, Sequence
+from dataclasses import replace
 
 import numpy as np
 
 from brdfcl.model.compose import Model, ModelError, parse_lobe
+from brdfcl.optim.fit import FitOptions, FitResult, Fitter
 from brdfcl.optim.selection import select
 
 NDF_FORMS = ("ggx", "gtr", "beckmann")
 FRESNEL_FORMS = ("schlick", "dielectric")
-NESTED = {"gtr": ("ggx", {"gamma": 2.0})}
-"""NDFs that contain another at a parameter value (GTR at gamma = 2 is GGX): a form with such an NDF
-is refined from the fits of the contained form with the same Fresnel (a warm start, no global
-search): it starts at that form's optimum (a failed contained fit gives no start)."""
+DEFAULT_FORMS = "gtr:dielectric,abc:schlick"
+"""GTR with a dielectric Fresnel (its own global search) and ABC with Schlick's (from the GTR fits)."""
 
 
 def parse_forms(text: str) -> tuple[tuple[str, ...], tuple[str, ...]]:
@@ -37,6 +44,21 @@ def parse_forms(text: str) -> tuple[tuple[str, ...], tuple[str, ...]]:
         if bad:
             raise ModelError(f"forms '{text}': unknown {kind} {', '.join(bad)}; valid: {', '.join(REGISTRY[kind])}")
     return ndfs, fresnels
+
+
+def form_keys(spec: str, text: str) -> dict[str, str]:
+    """{'ndf:fresnel': model spec} for a ``--forms`` text: a list of NDF:FRESNEL pairs
+    (``gtr:dielectric,abc:schlick``), or every NDF with every Fresnel (``NDF[,NDF...][:FRESNEL[,...]]``,
+    a part left out keeping the model's own).  ModelError names an unknown word or an impossible form."""
+    if text.count(":") > 1:
+        pairs = [w.strip().lower().split(":") for w in text.split(",") if w.strip()]
+        if any(len(p) != 2 or not all(p) for p in pairs):
+            raise ModelError(f"forms '{text}': a list of NDF:FRESNEL pairs, or NDFS[:FRESNELS]")
+        out = {}
+        for ndf, fresnel in pairs:
+            out.update(form_variants(spec, *parse_forms(f"{ndf}:{fresnel}")))
+        return out
+    return form_variants(spec, *parse_forms(text))
 
 
 def form_variants(spec: str, ndfs=NDF_FORMS, fresnels=FRESNEL_FORMS) -> dict[str, str]:
@@ -73,33 +95,170 @@ def choose_form(errors: dict, specs: dict) -> tuple[str, dict]:
     return select(errors, specs)
 
 
-def nesting_order(key: str) -> tuple[int, str]:
-    """Sort key of form keys ('ndf:fresnel'): a contained form before the forms that contain it."""
-    return (int(key.split(":")[0] in NESTED), key)
+# ---- warm starts: a form refined from another form's fits ----------------------------------------
+
+def _rows(params: Sequence[dict], model: Model) -> np.ndarray:
+    """Start values (n, ``model``'s parameters) from parameter dicts: clipped to the bounds, the
+    model's defaults where a value is missing or not finite."""
+    x = np.array([[p.get(n, np.nan) for n in model.names] for p in params], dtype=np.float64)
+    x = np.clip(x.reshape(len(params), len(model.names)), model.lo, model.hi)
+    return np.where(np.isfinite(x), x, model.defaults()[None, :])
 
 
-def nested_source(key: str, fitted) -> str | None:
-    """The fitted form ``key`` ('ndf:fresnel') is refined from, if any (its NDF contains that form's)."""
-    ndf, _, fresnel = key.partition(":")
-    if ndf not in NESTED:
-        return None
-    source = f"{NESTED[ndf][0]}:{fresnel}"
-    return source if source in fitted else None
+def f0_of_eta(eta):
+    """A dielectric's reflectance at normal incidence, ((eta - 1) / (eta + 1))^2."""
+    return ((eta - 1) / (eta + 1)) ** 2
+
+
+def _f0_channels(names, lobe: str) -> list[str]:
+    return [m.group(1) for n in names for m in [re.fullmatch(rf"{re.escape(lobe)}\.F0_(\w+)", n)] if m]
+
+
+def _lobe(model: Model) -> str:
+    return next(lb.prefix for lb in model.lobes if lb.role == "reflection")
 
 
 def warm_start(source_results, model: Model) -> np.ndarray:
-    """Start values (n, ``model``'s parameters) from the fits of a contained form: shared
-    parameters copied, the containing NDF's own at the values where it equals the contained one,
-    the model's defaults where a source value is not finite."""
-    extra = {f".{p}": v for nested in NESTED.values() for p, v in nested[1].items()}
-    rows = []
+    """GTR from GGX fits with the same Fresnel: the shared parameters copied, gamma = 2 (where GTR
+    is GGX)."""
+    lobe = _lobe(model)
+    return _rows([{**r.params, f"{lobe}.gamma": 2.0} for r in source_results], model)
+
+
+def dielectric_from_schlick(source_results, model: Model) -> np.ndarray:
+    """A dielectric-Fresnel form from the same NDF with Schlick's: eta from the mean F0
+    (F0 = ((eta - 1) / (eta + 1))^2, clipped to eta's bounds), each channel's amplitude scaled so that
+    rho x F at normal incidence is kept; the rest copied."""
+    lobe = _lobe(model)
+    k = model.names.index(f"{lobe}.eta")
+    params = []
     for r in source_results:
-        row = []
-        for n in model.names:
-            if n in r.params:
-                row.append(r.params[n])
+        p = dict(r.params)
+        channels = _f0_channels(p, lobe)
+        f0 = np.array([p.pop(f"{lobe}.F0_{c}") for c in channels])
+        s = np.sqrt(np.clip(f0.mean(), 1e-6, 0.999))
+        p[f"{lobe}.eta"] = eta = float(np.clip((1 + s) / (1 - s), model.lo[k], model.hi[k]))
+        for c, f in zip(channels, f0):
+            p[f"{lobe}.rho_{c}"] *= f / f0_of_eta(eta)
+        params.append(p)
+    return _rows(params, model)
+
+
+def abc_from_gtr(source_results, model: Model) -> np.ndarray:
+    """ABC from GTR fits: near the peak 1 - cos th ~ th^2 / 2 and tan^2 th ~ th^2, so
+    (1 + tan^2 / alpha^2)^-gamma ~ (1 + B (1 - cos th))^-C at B = 2 / alpha^2, C = gamma (the tails
+    match too: th^-2 gamma); a dielectric's eta gives its F0 in every channel (the same F at normal
+    incidence)."""
+    lobe = _lobe(model)
+    channels = _f0_channels(model.names, lobe)
+    params = []
+    for r in source_results:
+        p = dict(r.params)
+        alpha, gamma = p.pop(f"{lobe}.alpha"), p.pop(f"{lobe}.gamma")
+        p[f"{lobe}.B"], p[f"{lobe}.C"] = 2.0 / (alpha * alpha), gamma
+        if f"{lobe}.eta" in p:
+            f0 = f0_of_eta(p.pop(f"{lobe}.eta"))
+            p.update({f"{lobe}.F0_{c}": f0 for c in channels})
+        params.append(p)
+    return _rows(params, model)
+
+
+STARTS: tuple[tuple[str, str, Callable], ...] = (
+    # (form, the form whose fits it starts from ('*': the same word), conversion); the first whose
+    # source was fitted, every fit a success, gives the start
+    ("gtr:*", "ggx:*", warm_start),
+    ("abc:schlick", "gtr:dielectric", abc_from_gtr),
+    ("abc:*", "gtr:*", abc_from_gtr),
+    ("*:dielectric", "*:schlick", dielectric_from_schlick),
+)
+
+
+def _sources(key: str) -> list[tuple[str, Callable]]:
+    """The forms ``key`` could start from, in STARTS' order, with their conversions."""
+    ndf, fresnel = key.split(":")
+    out = []
+    for target, source, how in STARTS:
+        t_ndf, t_fresnel = target.split(":")
+        if t_ndf in ("*", ndf) and t_fresnel in ("*", fresnel):
+            s_ndf, s_fresnel = source.split(":")
+            s = f"{ndf if s_ndf == '*' else s_ndf}:{fresnel if s_fresnel == '*' else s_fresnel}"
+            if s != key:
+                out.append((s, how))
+    return out
+
+
+def start_source(key: str, fitted: dict) -> tuple[str, Callable] | None:
+    """(form, conversion) whose fits ``key`` starts from, among ``fitted`` ({key: results}); None:
+    its own global search (no source fitted, or one of its fits failed)."""
+    for source, how in _sources(key):
+        if source in fitted and all(r.success for r in fitted[source]):
+            return source, how
+    return None
+
+
+def fit_order(keys) -> list[str]:
+    """``keys`` with every form after the forms among them it could start from."""
+    todo, order = list(keys), []
+    while todo:
+        ready = [k for k in todo if not any(s in todo for s, _ in _sources(k))] or todo[:1]
+        order.append(ready[0])
+        todo.remove(ready[0])
+    return order
+
+
+def resolve(forms: str | None, opts: FitOptions) -> str | None:
+    """The candidate forms a run chooses among: ``"default"`` is DEFAULT_FORMS for FitOptions'
+    default model with nothing fixed, else none (the model as given); None or ``"none"``: none."""
+    if forms == "default":
+        return DEFAULT_FORMS if opts.model == FitOptions().model and not opts.fixed else None
+    return None if forms is None or forms.strip().lower() == "none" else forms
+
+
+class FormFitter:
+    """Fits a batch in every candidate form (``forms``: {key: model spec}, `form_keys`) and keeps
+    each material's form of least penalised error.  ``loader``: the Fitter whose cells a batch is
+    loaded on (brdfcl.optim.fit.load_batch); every form fits the same cells."""
+
+    def __init__(self, opts: FitOptions, forms: dict[str, str], lambdas: Sequence[float] | None = None):
+        self.forms = dict(forms)
+        self.fitters = {k: Fitter(replace(opts, model=s), lambdas=lambdas) for k, s in self.forms.items()}
+        self.loader = next(iter(self.fitters.values()))
+
+    def fit(self, names: Sequence[str], full: np.ndarray, coarse: np.ndarray,
+            on_result: Callable[[FitResult, dict], None] | None = None,
+            log: Callable[[str], None] = lambda s: None) -> list[tuple[FitResult, dict]]:
+        """[(the chosen form's fit, what NAME.json records of the choice: ``form``, ``form_errors``)]
+        per material, in order; ``on_result(result, record)`` as each is chosen.  A material whose
+        every form failed keeps the first form's (failed) fit."""
+        return self._choose(len(names), lambda f, start: f.fit(names, full, coarse, log=log, start=start),
+                            on_result, log)
+
+    def fit_samples(self, samples: Sequence, on_result: Callable[[FitResult, dict], None] | None = None,
+                    log: Callable[[str], None] = lambda s: None) -> list[tuple[FitResult, dict]]:
+        """`fit` for scattered measurements (brdfcl.optim.fit.Fitter.fit_samples)."""
+        samples = list(samples)
+        return self._choose(len(samples), lambda f, start: f.fit_samples(samples, log=log, start=start),
+                            on_result, log)
+
+    def _choose(self, n: int, fit: Callable, on_result, log) -> list[tuple[FitResult, dict]]:
+        fitted: dict[str, list[FitResult]] = {}
+        for key in fit_order(self.forms):
+            f = self.fitters[key]
+            src = start_source(key, fitted)
+            fitted[key] = fit(f, None if src is None else src[1](fitted[src[0]], f.model))
+            log(f"form {key}: fitted {n} materials" + (f" from the {src[0]} fits (no global search)" if src else ""))
+        out = []
+        for i in range(n):
+            errors = {k: fitted[k][i].errors["rmse_log"] for k in self.forms
+                      if fitted[k][i].success and np.isfinite(fitted[k][i].errors["rmse_log"])}
+            record: dict
+            if errors:
+                key, pen = choose_form(errors, self.forms)
+                record = {"form": key, "form_errors": {k: {"rmse_log": errors[k], "penalised": pen[k]}
+                                                       for k in errors}}
             else:
-                row.append(next((v for suffix, v in extra.items() if n.endswith(suffix)), np.nan))
-        rows.append(row)
-    x = np.array(rows, dtype=np.float64).reshape(len(rows), len(model.names))
-    return np.where(np.isfinite(x), x, model.defaults()[None, :])
+                key, record = next(iter(self.forms)), {"form": None, "form_errors": {}}
+            out.append((fitted[key][i], record))
+            if on_result is not None:
+                on_result(*out[-1])
+        return out

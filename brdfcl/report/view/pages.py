@@ -18,6 +18,7 @@ from pathlib import Path
 
 from brdfcl.data.inputs import is_table
 from brdfcl.model.compose import Model
+from brdfcl.optim.selection import PENALTY
 from brdfcl.report.files import writing
 from brdfcl.report.view.slices import write_slices
 from brdfcl.report.view.sphere import DEFAULT_LIGHTS, write_spheres
@@ -69,6 +70,8 @@ class Entry:
     albedo: dict | None = None
     flags: list = field(default_factory=list)
     lambdas: tuple | None = None          # the channels' wavelengths (um); None: R, G, B
+    form: str | None = None               # the reflection lobe's form, where chosen (brdfcl.optim.forms)
+    form_errors: dict | None = None       # {form: {"rmse_log", "penalised"}} of every candidate
 
     @classmethod
     def from_document(cls, doc, table=None, **kw):
@@ -77,7 +80,8 @@ class Entry:
         return cls(doc["material"], doc["model"], {k: v["value"] for k, v in doc["params"].items()},
                    doc["errors"], doc["status"], table, uncertainty=doc.get("uncertainty"),
                    albedo=doc.get("albedo"), flags=list(doc.get("flags") or []),
-                   lambdas=tuple(lambdas) if lambdas else None, **kw)
+                   lambdas=tuple(lambdas) if lambdas else None, form=doc.get("form"),
+                   form_errors=doc.get("form_errors"), **kw)
 
     @classmethod
     def from_result(cls, res, table=None, **kw):
@@ -182,8 +186,10 @@ def comparison_page(entries, title, rep) -> str:
         for g, ks in _groups(e.params).items():
             groups.setdefault(g, ks)
     analysed = any(e.verdict for e in entries)
+    formed = any(e.form for e in entries)
     metrics = error_columns(entries)
-    heads = ["", "material"] + (["verdict"] if analysed else []) + metrics + list(groups) + ["status", "flags"]
+    heads = ["", "material"] + (["verdict"] if analysed else []) + (["form"] if formed else []) + metrics \
+        + list(groups) + ["status", "flags"]
     h = [_head(title), f"<h1>{html.escape(title)}</h1>",
          f"<p>{len(entries)} materials. Click a column header to sort; a material's name opens its page "
          "(spheres, slices, parameters with standard errors). Thumbnails: measured | fitted under the "
@@ -198,6 +204,8 @@ def comparison_page(entries, title, rep) -> str:
                  _td(f"<a href='{_q(e.name)}.html'>{html.escape(e.name)}</a>", e.name, "l")]
         if analysed:
             cells.append(_td(html.escape(e.verdict or ""), e.verdict or "", "l"))
+        if formed:
+            cells.append(_td(html.escape(e.form or ""), e.form or "", "l"))
         cells += [_num(e.errors.get(m)) for m in metrics]
         for g in groups:
             vals = [e.params[k] for k in _groups(e.params).get(g, [])]
@@ -221,6 +229,13 @@ def material_page(e, images, rep) -> str:
          + (f"; verdict <b>{html.escape(e.verdict)}</b>" if e.verdict else "") + "</p>",
          "<table><tr>" + "".join(f"<th>{m}</th>" for m in error_columns([e])) + "</tr><tr>"
          + "".join(_num(e.errors.get(m)) for m in error_columns([e])) + "</tr></table>"]
+    if e.form_errors:
+        h.append(f"<p>reflection lobe form <b>{html.escape(str(e.form))}</b>, the least penalised error "
+                 f"(rmse_log x (1 + {PENALTY:g} x free parameters)) of the candidates:</p><table><tr><th>form</th>"
+                 "<th>rmse_log</th><th>penalised</th></tr>"
+                 + "".join(f"<tr><td>{html.escape(k)}</td>{_num(v.get('rmse_log'))}{_num(v.get('penalised'))}</tr>"
+                           for k, v in sorted(e.form_errors.items(), key=lambda kv: kv[1].get("penalised", 0)))
+                 + "</table>")
     if e.flags:
         h.append("<h2>Flags</h2><ul>" + "".join(f"<li class='flag'>{html.escape(f)}</li>" for f in e.flags) + "</ul>")
     h.append("<h2>Parameters</h2>" + _param_table(e))
