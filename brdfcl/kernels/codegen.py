@@ -16,7 +16,7 @@ from pathlib import Path
 import sympy as sp
 from mako.template import Template
 
-from brdfcl.kernels import log1p
+from brdfcl.kernels import inline_math
 from brdfcl.kernels.terms import c_source
 from brdfcl.model.compose import Model
 from brdfcl.model.lobes.lobe import Emitter
@@ -116,8 +116,8 @@ def render(model: Model, opt: KernelOptions) -> str:
         reported=[(m.name, m.c("xp")[0], m.c("xm")[0]) for m in IMPLEMENTED_METRICS.values()],
         real_v=opt.real + vec, cond_v=("int" if opt.real == "float" else "long") + vec,
         common=read_kernel("common.cl"), sources=term_sources(model),
-        log1p=[log1p.c_source(t, i) for t, i in dict.fromkeys(
-            ((opt.real + vec, "int" + vec), ("float", "int")))],
+        inline_math=[inline_math.c_source(t, i) for t, i in dict.fromkeys(
+            ((opt.real + vec, "int" + vec), ("float", "int")))], inline_names=inline_math.NAMES,
         slots=model.slots, n_slots=model.n_params, n_ch=model.n_channels,
         consts=["K_" + k.replace(".", "_") for k in model.const_names],
         n_prm=model.n_params + len(model.const_names), n_free=model.n_free,

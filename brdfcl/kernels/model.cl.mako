@@ -22,13 +22,15 @@ typedef ${cond_v} cond_v;
 ${common}
 % if real == "float":
 
-/* log1p written inline (brdfcl/kernels/log1p.py): SLEEF's is a division and double-float
- * arithmetic, and an out-of-line call in the pip PoCL */
-% for src in log1p:
+/* log1p, log and exp written inline (brdfcl/kernels/inline_math.py): SLEEF's are divisions and
+ * double-float arithmetic, and out-of-line calls in the pip PoCL */
+% for src in inline_math:
 ${src}
 % endfor
-#undef log1p
-#define log1p(x) brdfcl_log1p(x)
+% for name in inline_names:
+#undef ${name}
+#define ${name}(x) brdfcl_${name}(x)
+% endfor
 % endif
 
 % for src in sources:
