@@ -71,17 +71,9 @@ def main(argv=None) -> int:
         seconds[k] = time.perf_counter() - t
         print(f"{k}: {seconds[k]:.1f} s", flush=True)
     specs = {k: f.model.spec for k, f in fitters.items()}
-    fits = {k: {r.name: np.array([r.params[n] for n in fitters[k].model.names]) for r in results[k]} for k in FORMS}
-    by_spec: dict[str, list[str]] = {}
-    for k in FORMS:
-        by_spec.setdefault(specs[k], []).append(k)
-    scores: dict[str, dict[str, float]] = {n: {} for n in names}
-    for j in range(max(len(v) for v in by_spec.values())):   # forms sharing a model: one scoring round each
-        keys = [v[j] for v in by_spec.values() if len(v) > j]
-        got = cp.score(tables, [specs[k] for k in keys], {specs[k]: fits[k] for k in keys})
-        for n in names:
-            scores[n].update({k: got[n][specs[k]] for k in keys})
-            scores[n].update({k: got[n][k] for k in RIVALS})
+    fits = {k: {r.name: (specs[k], np.array([r.params[n] for n in fitters[k].model.names])) for r in results[k]}
+            for k in FORMS}
+    scores = cp.score(tables, list(FORMS), fits)       # {material: {form key or published fit: rmse_log}}
     lines = [f"# Forms of the reflection lobe against the published fits ({datetime.date.today()})", "",
              f"Made by `python bench/bench_forms.py`. Data: MERL-proxy ({args.data}), {len(names)} materials. CPU: "
              f"{cp.cpu_name()}; brdfcl {__version__}; default device, default options. Forms: "

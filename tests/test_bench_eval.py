@@ -85,3 +85,7 @@ def test_loop_mix_reads_the_hot_loop_of_the_disassembly():
     assert (m["instructions"], m["fma"], m["arith"], m["other"], m["mem"]) == (7, 1, 2, 1, 2)
     assert m["flops"] == 4 and m["ceiling"] == 4 / (2 * 4)
     assert bench_eval.loop_mix(OBJDUMP, "jtj") is None
+
+
+def test_no_instruction_mix_no_table():
+    assert bench_eval.mix_lines([{"platform": "p", "kernel": "grad", "mix": None}]) == []

@@ -96,6 +96,11 @@ def test_fit_all_records_the_chosen_form(demo_db, tmp_path):
                           "--forms", "ggx,foo"], capture_output=True, text=True)
     assert bad.returncode != 0 and "Traceback" not in bad.stderr
     assert "forms 'ggx,foo': unknown ndf foo" in bad.stderr
+    fixed = subprocess.run([sys.executable, "-m", "brdfcl.app.cli", "fit-all", str(demo_db),
+                            "--out", str(tmp_path / "f"), "--forms", "gtr:dielectric,abc:schlick",
+                            "--fix", "ct.F0_r=0.5"], capture_output=True, text=True)
+    assert fixed.returncode == 2 and "Traceback" not in fixed.stderr and not (tmp_path / "f").exists()
+    assert "cannot fix 'ct.F0_r': not a parameter of diffuse+diffraction:hp:none+gtr:smith:dielectric" in fixed.stderr
 
 
 def test_a_containing_form_starts_from_the_contained_forms_fits():
@@ -196,3 +201,25 @@ def test_default_fit_all_chooses_among_the_default_forms(demo_db, tmp_path):
     doc = json.loads((tmp_path / "g" / "synth-rough-metal.json").read_text())
     assert "form" not in doc and "forms" not in doc["options"]
     assert doc["model"] == "diffuse+diffraction:hp:none+ggx:smith:schlick"
+
+
+def test_start_conversions_cover_every_reflection_lobe_and_keep_a_dielectric():
+    """Two reflection lobes: each converted; ABC with a dielectric Fresnel from a dielectric GTR keeps
+    its eta (no F0 to make)."""
+    from types import SimpleNamespace
+
+    from brdfcl.optim.forms import abc_from_gtr, dielectric_from_schlick, warm_start
+    two = Model("diffuse+gtr:smith:schlick+gtr:smith:schlick")
+    p = {**dict(zip(two.names, two.defaults())), "ct.F0_r": 0.04, "ct.F0_g": 0.04, "ct.F0_b": 0.04,
+         "ct2.F0_r": 0.09, "ct2.F0_g": 0.09, "ct2.F0_b": 0.09}
+    diel = Model("diffuse+gtr:smith:dielectric+gtr:smith:dielectric")
+    x = dict(zip(diel.names, dielectric_from_schlick([SimpleNamespace(params=p)], diel)[0]))
+    assert x["ct.eta"] == pytest.approx(1.5) and x["ct2.eta"] == pytest.approx(1.857142857)
+    ggx = Model("diffuse+ggx+ggx")
+    y = dict(zip(two.names, warm_start([SimpleNamespace(params=dict(zip(ggx.names, ggx.defaults())))], two)[0]))
+    assert y["ct.gamma"] == y["ct2.gamma"] == 2.0
+    gtr = Model("diffuse+gtr:smith:dielectric")
+    abc = Model("diffuse+abc:smith:dielectric")
+    src = {**dict(zip(gtr.names, gtr.defaults())), "ct.eta": 2.2, "ct.alpha": 0.2, "ct.gamma": 1.5}
+    z = dict(zip(abc.names, abc_from_gtr([SimpleNamespace(params=src)], abc)[0]))
+    assert z["ct.eta"] == pytest.approx(2.2) and z["ct.B"] == pytest.approx(50.0) and z["ct.C"] == 1.5

@@ -40,6 +40,7 @@ from brdfcl.data.inputs import (
 from brdfcl.data.merl import material_name
 from brdfcl.data.readers import read_samples
 from brdfcl.data.rgb import to_rgb
+from brdfcl.model.compose import Model
 from brdfcl.optim.fit import FitOptions
 from brdfcl.optim.forms import FormFitter, form_keys, resolve
 from brdfcl.report.writers import FIT, IMPLEMENTED_WRITERS, Job, export_writers
@@ -82,9 +83,11 @@ def fit_all(source, out=None, options: FitOptions | None = None, batch=100, expo
     opts = options or FitOptions(**kw)
     if forms == "default" and "model" in kw:
         forms = None
-    explicit = resolve(forms, replace(opts, model="", fixed={})) is not None     # asked for, not the default
+    explicit = forms not in (None, "default") and forms.strip().lower() != "none"     # asked for
     forms = resolve(forms, opts)
     form_specs = form_keys(opts.model, forms) if forms is not None else None
+    for spec in (form_specs or {}).values():     # a fixed parameter every form must have: before any work
+        Model(spec, fixed=opts.fixed)
     if select_lobes:        # what the lobe comparison fits with (brdfcl.analysis.analyze), so what is recorded
         opts = replace(opts, fixed={}, ct_peak=not free_peak)
     models = Models(opts, select_lobes=select_lobes, free_peak=free_peak, forms=form_specs)

@@ -117,7 +117,8 @@ def render(model: Model, opt: KernelOptions) -> str:
         real_v=opt.real + vec, cond_v=("int" if opt.real == "float" else "long") + vec,
         common=read_kernel("common.cl"), sources=term_sources(model),
         inline_math=[inline_math.c_source(t, i) for t, i in dict.fromkeys(
-            ((opt.real + vec, "int" + vec), ("float", "int")))], inline_names=inline_math.NAMES,
+            ((opt.real + vec, "int" + vec), ("float", "int")))] if opt.real == "float" else [],
+        inline_names=inline_math.NAMES,
         slots=model.slots, n_slots=model.n_params, n_ch=model.n_channels,
         consts=["K_" + k.replace(".", "_") for k in model.const_names],
         n_prm=model.n_params + len(model.const_names), n_free=model.n_free,

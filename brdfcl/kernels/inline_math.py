@@ -15,9 +15,10 @@ within 1.5 ulp for normal x > 0, exp within 1.3 ulp.
     exp(x):   k = round(x / ln 2), r = x - k ln 2 in [-ln2/2, ln2/2]
               exp(x) = 2^k (1 + r + r^2 P(r))                     (P: minimax, (e^r - 1 - r) / r^2)
 
-Special values as the builtins: log1p(inf) = log(inf) = exp(inf) = inf, log(0) = -inf, exp(-inf)
-= 0, NaN stays NaN, log of a negative is NaN; log1p(-1) is -88 (not -inf), exp below -104 is 0
-and a subnormal x gives a rough log.
+Special values: log1p(inf) = log(inf) = exp(inf) = inf, log(0) = -inf, exp(-inf) = 0, NaN stays
+NaN, log of a negative is NaN, as the builtins.  Where they differ (outside what the kernels take):
+log1p(-1) is -88 and log1p(x < -1) a finite number, not -inf and NaN; log1p(-0) is +0; the log of
+a subnormal is about -88 (the truth down to -103); exp below -104 is 0.
 """
 from __future__ import annotations
 
@@ -72,7 +73,7 @@ def fit_exp(degree: int = 4) -> tuple[float, ...]:
     return _lawson(r, (np.exp(r) - 1 - r) / r**2, r**2 / np.exp(r), degree)
 
 
-# ---- numpy twins: the kernels' arithmetic operation for operation, FMAs rounded once ----------
+# ---- numpy twins: the kernels' arithmetic operation for operation (an FMA through float64) ---
 
 def _fma(a, b, c):
     return (np.asarray(a, np.float64) * b + c).astype(np.float32)

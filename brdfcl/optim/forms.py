@@ -114,53 +114,66 @@ def _f0_channels(names, lobe: str) -> list[str]:
     return [m.group(1) for n in names for m in [re.fullmatch(rf"{re.escape(lobe)}\.F0_(\w+)", n)] if m]
 
 
-def _lobe(model: Model) -> str:
-    return next(lb.prefix for lb in model.lobes if lb.role == "reflection")
+def _lobes(model: Model) -> list[str]:
+    """The prefixes of the model's reflection lobes (``ct``, ``ct2``, ...): a form is every one's."""
+    return [lb.prefix for lb in model.lobes if lb.role == "reflection"]
+
+
+def _convert(source_results, model: Model, lobe_fn: Callable[[dict, str, Model], None]) -> np.ndarray:
+    """Start rows from fits: each fit's parameters, ``lobe_fn(params, prefix, model)`` applied to
+    every reflection lobe in place."""
+    params = []
+    for r in source_results:
+        p = dict(r.params)
+        for lobe in _lobes(model):
+            lobe_fn(p, lobe, model)
+        params.append(p)
+    return _rows(params, model)
+
+
+def _gamma_two(p: dict, lobe: str, model: Model) -> None:
+    p[f"{lobe}.gamma"] = 2.0
+
+
+def _eta_from_f0(p: dict, lobe: str, model: Model) -> None:
+    channels = _f0_channels(list(p), lobe)
+    if not channels:
+        return
+    k = model.names.index(f"{lobe}.eta")
+    f0 = np.array([p.pop(f"{lobe}.F0_{c}") for c in channels])
+    s = np.sqrt(np.clip(f0.mean(), 1e-6, 0.999))
+    p[f"{lobe}.eta"] = eta = float(np.clip((1 + s) / (1 - s), model.lo[k], model.hi[k]))
+    for c, f in zip(channels, f0):
+        p[f"{lobe}.rho_{c}"] *= f / f0_of_eta(eta)
+
+
+def _abc_from_gtr(p: dict, lobe: str, model: Model) -> None:
+    alpha, gamma = p.pop(f"{lobe}.alpha"), p.pop(f"{lobe}.gamma")
+    p[f"{lobe}.B"], p[f"{lobe}.C"] = 2.0 / (alpha * alpha), gamma
+    if f"{lobe}.eta" in p and f"{lobe}.eta" not in model.names:        # a Schlick ABC: F0 from eta
+        f0 = f0_of_eta(p.pop(f"{lobe}.eta"))
+        p.update({f"{lobe}.F0_{c}": f0 for c in _f0_channels(model.names, lobe)})
 
 
 def warm_start(source_results, model: Model) -> np.ndarray:
     """GTR from GGX fits with the same Fresnel: the shared parameters copied, gamma = 2 (where GTR
     is GGX)."""
-    lobe = _lobe(model)
-    return _rows([{**r.params, f"{lobe}.gamma": 2.0} for r in source_results], model)
+    return _convert(source_results, model, _gamma_two)
 
 
 def dielectric_from_schlick(source_results, model: Model) -> np.ndarray:
     """A dielectric-Fresnel form from the same NDF with Schlick's: eta from the mean F0
     (F0 = ((eta - 1) / (eta + 1))^2, clipped to eta's bounds), each channel's amplitude scaled so that
     rho x F at normal incidence is kept; the rest copied."""
-    lobe = _lobe(model)
-    k = model.names.index(f"{lobe}.eta")
-    params = []
-    for r in source_results:
-        p = dict(r.params)
-        channels = _f0_channels(p, lobe)
-        f0 = np.array([p.pop(f"{lobe}.F0_{c}") for c in channels])
-        s = np.sqrt(np.clip(f0.mean(), 1e-6, 0.999))
-        p[f"{lobe}.eta"] = eta = float(np.clip((1 + s) / (1 - s), model.lo[k], model.hi[k]))
-        for c, f in zip(channels, f0):
-            p[f"{lobe}.rho_{c}"] *= f / f0_of_eta(eta)
-        params.append(p)
-    return _rows(params, model)
+    return _convert(source_results, model, _eta_from_f0)
 
 
 def abc_from_gtr(source_results, model: Model) -> np.ndarray:
     """ABC from GTR fits: near the peak 1 - cos th ~ th^2 / 2 and tan^2 th ~ th^2, so
     (1 + tan^2 / alpha^2)^-gamma ~ (1 + B (1 - cos th))^-C at B = 2 / alpha^2, C = gamma (the tails
-    match too: th^-2 gamma); a dielectric's eta gives its F0 in every channel (the same F at normal
-    incidence)."""
-    lobe = _lobe(model)
-    channels = _f0_channels(model.names, lobe)
-    params = []
-    for r in source_results:
-        p = dict(r.params)
-        alpha, gamma = p.pop(f"{lobe}.alpha"), p.pop(f"{lobe}.gamma")
-        p[f"{lobe}.B"], p[f"{lobe}.C"] = 2.0 / (alpha * alpha), gamma
-        if f"{lobe}.eta" in p:
-            f0 = f0_of_eta(p.pop(f"{lobe}.eta"))
-            p.update({f"{lobe}.F0_{c}": f0 for c in channels})
-        params.append(p)
-    return _rows(params, model)
+    match too: th^-2 gamma); the Fresnel kept, or, for a Schlick ABC from a dielectric GTR, eta's
+    F(0) as every channel's F0 (the same F at normal incidence)."""
+    return _convert(source_results, model, _abc_from_gtr)
 
 
 STARTS: tuple[tuple[str, str, Callable], ...] = (
