@@ -42,6 +42,8 @@ def test_variants_keep_the_other_lobes_and_the_shadowing_word():
     assert set(form_keys("diffuse+diffraction+ggx", DEFAULT_FORMS)) == set(DEFAULT_FORMS.split(","))
     with pytest.raises(ModelError, match="NDF:FRESNEL pairs"):
         form_keys("diffuse+ggx", "gtr:dielectric,abc,ggx:schlick")
+    with pytest.raises(ModelError, match="forms '': give"):
+        form_keys("diffuse+ggx", " ")
 
 
 def _material(form, seed):
@@ -191,6 +193,8 @@ def test_default_fit_all_chooses_among_the_default_forms(demo_db, tmp_path):
         assert doc["options"]["forms"] == sorted(keys)
     plastic = json.loads((tmp_path / "o" / "synth-smooth-plastic.json").read_text())
     assert plastic["form"] == "gtr:dielectric"        # a dielectric: one index, not three F0
+    # fitted first, chosen after the ABC form's fit: its time and evaluations count both forms' fits
+    assert plastic["seconds"] > plastic["history"][-1]["seconds"] + 0.1
     from brdfcl.report.view.pages import Entry, comparison_page, material_page
     entry = Entry.from_document(plastic)              # the report shows the choice
     assert "form <b>gtr:dielectric</b>" in material_page(entry, {}, tmp_path)

@@ -70,7 +70,8 @@ def add_fit_arguments(p: argparse.ArgumentParser) -> None:
     cutoff = "none" if d.cutoff_deg is None else f"{d.cutoff_deg:g}"
     real = {"float": "float32", "double": "float64"}.get(d.real, d.real)
     opt = functools.partial(p.add_argument, default=argparse.SUPPRESS)    # absent unless given
-    opt("--model", help=f"model string (default {d.model})")
+    opt("--model", help=f"model string (default {d.model}; fit-all without --model chooses its reflection "
+                        "lobe's form per material, see --forms)")
     opt("--metric", choices=METRICS, help=f"fit metric (default {d.metric}); "
         + "; ".join(f"{m.name}: {m.doc}" for m in IMPLEMENTED_METRICS.values()))
     opt("--no-cos", dest="cosw", action="store_false",

@@ -16,7 +16,9 @@ better of them (bench/bench_forms.py, bench/results/forms_published.md).
 """
 from __future__ import annotations
 
+import dataclasses
 import re
+import time
 from collections.abc import Callable, Sequence
 from dataclasses import replace
 
@@ -50,6 +52,8 @@ def form_keys(spec: str, text: str) -> dict[str, str]:
     """{'ndf:fresnel': model spec} for a ``--forms`` text: a list of NDF:FRESNEL pairs
     (``gtr:dielectric,abc:schlick``), or every NDF with every Fresnel (``NDF[,NDF...][:FRESNEL[,...]]``,
     a part left out keeping the model's own).  ModelError names an unknown word or an impossible form."""
+    if not text.strip():
+        raise ModelError("forms '': give NDF:FRESNEL pairs (gtr:dielectric,abc:schlick), NDFS[:FRESNELS] or none")
     if text.count(":") > 1:
         pairs = [w.strip().lower().split(":") for w in text.split(",") if w.strip()]
         if any(len(p) != 2 or not all(p) for p in pairs):
@@ -254,6 +258,7 @@ class FormFitter:
                             on_result, log)
 
     def _choose(self, n: int, fit: Callable, on_result, log) -> list[tuple[FitResult, dict]]:
+        t0 = time.perf_counter()
         fitted: dict[str, list[FitResult]] = {}
         for key in fit_order(self.forms):
             f = self.fitters[key]
@@ -271,7 +276,9 @@ class FormFitter:
                                                        for k in errors}}
             else:
                 key, record = next(iter(self.forms)), {"form": None, "form_errors": {}}
-            out.append((fitted[key][i], record))
+            # the choice took every form's fit: its time and evaluations are the material's
+            out.append((dataclasses.replace(fitted[key][i], seconds=time.perf_counter() - t0,
+                                            nfev=sum(fitted[k][i].nfev for k in self.forms)), record))
             if on_result is not None:
                 on_result(*out[-1])
         return out
