@@ -35,7 +35,7 @@ from brdfcl.model.compose import DEFAULT_MODEL, Model
 from brdfcl.model.lobes.cells import Cells
 from brdfcl.model.metrics import errors
 from brdfcl.optim.fit import FitOptions, Fitter, load_batch
-from brdfcl.optim.forms import DEFAULT_FORMS, FormFitter, form_keys
+from brdfcl.optim.forms import DEFAULT_FORMS, FormFitter, form_keys, resolve
 
 PUBLISHED = ("sgd_bagher2012", "abc_low2012_microfacet_e2", "abc_low2012_smooth_e2")
 SHORT = {"sgd_bagher2012": "SGD", "abc_low2012_microfacet_e2": "ABC-mf", "abc_low2012_smooth_e2": "ABC-sm"}
@@ -52,7 +52,7 @@ def fit_database(tables: list, spec: str) -> tuple[dict[str, tuple[str, np.ndarr
     fit (extraction and upload included, reading the files not)."""
     t0 = time.perf_counter()
     if spec == DEFAULT:
-        ff = FormFitter(FitOptions(), form_keys(DEFAULT_MODEL, DEFAULT_FORMS))
+        ff = FormFitter(FitOptions(), form_keys(DEFAULT_MODEL, resolve("default", FitOptions())))
         names, full, coarse = load_batch(tables, ff.loader)
         res = [r for r, _ in ff.fit(names, full, coarse)]
     else:

@@ -42,7 +42,7 @@ from brdfcl.data.readers import read_samples
 from brdfcl.data.rgb import to_rgb
 from brdfcl.model.compose import Model
 from brdfcl.optim.fit import FitOptions
-from brdfcl.optim.forms import FormFitter, form_keys, resolve
+from brdfcl.optim.forms import FormFitter, asked_for, form_keys, resolve
 from brdfcl.report.writers import FIT, IMPLEMENTED_WRITERS, Job, export_writers
 
 # This module's API, with the names of the runner and of brdfcl.data.inputs callers import from here.
@@ -81,10 +81,8 @@ def fit_all(source, out=None, options: FitOptions | None = None, batch=100, expo
     ``model`` keyword is a model asked for: it is fitted as given); None or ``"none"``: the model as
     given."""
     opts = options or FitOptions(**kw)
-    if forms == "default" and "model" in kw:
-        forms = None
-    explicit = forms not in (None, "default") and forms.strip().lower() != "none"     # asked for
-    forms = resolve(forms, opts)
+    explicit = asked_for(forms)
+    forms = resolve(forms, opts, model_given="model" in kw)
     form_specs = form_keys(opts.model, forms) if forms is not None else None
     for spec in (form_specs or {}).values():     # a fixed parameter every form must have: before any work
         Model(spec, fixed=opts.fixed)
@@ -136,7 +134,7 @@ def _fit_here(run: Runner, todo: list[str], models: Models, batch: int) -> None:
     its form is chosen)."""
     with run.tracking(len(todo)):
         for part in run.batches(todo, batch):
-            fitter = models.main_fitter() if models.forms is None else models.form_fitter()
+            fitter = models.table_fitter()
             loaded = run.load(part, models.loader())
             if loaded is not None:
                 names, full, coarse, _ = loaded

@@ -119,9 +119,14 @@ class Models:
                     self._engines.setdefault(ff.forms[k], f.engine)
         return self._form_fitters[key]
 
+    def table_fitter(self) -> Fitter | FormFitter:
+        """What fits a batch of tables: the run's model, or its choice of forms."""
+        return self.main_fitter() if self.forms is None else self.form_fitter()
+
     def loader(self) -> Fitter:
         """The Fitter whose cells a batch of tables is loaded on."""
-        return self.main_fitter() if self.forms is None else self.form_fitter().loader
+        f = self.table_fitter()
+        return f.loader if isinstance(f, FormFitter) else f
 
     def model(self, spec: str, lambdas: tuple | None = None) -> Model:
         """The model of a spec (with the run's fixed parameters for its own), at ``lambdas`` (one

@@ -223,12 +223,19 @@ def fit_order(keys) -> list[str]:
     return order
 
 
-def resolve(forms: str | None, opts: FitOptions) -> str | None:
+def asked_for(forms: str | None) -> bool:
+    """Whether ``forms`` names candidates itself (not the default choice, not none)."""
+    return forms not in (None, "default") and forms.strip().lower() != "none"
+
+
+def resolve(forms: str | None, opts: FitOptions, model_given: bool = False) -> str | None:
     """The candidate forms a run chooses among: ``"default"`` is DEFAULT_FORMS for FitOptions'
-    default model with nothing fixed, else none (the model as given); None or ``"none"``: none."""
+    default model, not asked for by name (``model_given``), with nothing fixed, else none (the model
+    as given); None or ``"none"``: none."""
     if forms == "default":
-        return DEFAULT_FORMS if opts.model == FitOptions().model and not opts.fixed else None
-    return None if forms is None or forms.strip().lower() == "none" else forms
+        default = opts.model == FitOptions().model and not model_given and not opts.fixed
+        return DEFAULT_FORMS if default else None
+    return forms if asked_for(forms) else None
 
 
 class FormFitter:
