@@ -15,11 +15,13 @@ import pytest
 from brdfcl.data.merl import read_merl
 from brdfcl.device import selftest, width
 from brdfcl.device.engine import Engine
-from brdfcl.device.platforms import all_devices, pocl_version
+from brdfcl.device.platforms import all_devices
 from brdfcl.device.program import ProgramError, sound_bitcode, sound_elf
 from brdfcl.optim.fit import FitOptions, fit_tables, select_cells
+from tests.runtimes import building, device_params, is_cpu, is_pocl
 
-POCL = [f"{i}" for i, (p, d) in enumerate(all_devices()) if "portable computing" in p.name.lower()]
+POCL = device_params(is_pocl)               # PoCL's kernel cache: each PoCL build that builds here
+CPU_RUNTIMES = building(is_cpu)             # every CPU runtime that builds here (PoCL builds, Intel's)
 
 
 @pytest.fixture()
@@ -43,7 +45,7 @@ def test_falls_back_to_the_widest_width_that_passes(cache):
         if w > 4:
             return {"ok": False, "detail": "crashed (signal 11)"}
         return {"ok": True, "detail": "passed (max relative error 1e-07)"}
-    top = width.preferred(d, "float")
+    top = width.candidates(d, "float")[0]
     got = width.choose(p, d, "float", probe_fn=fake_probe)
     assert got.width == min(4, top)
     assert calls == [w for w in (16, 8, 4, 2, 1) if min(4, top) <= w <= top]
@@ -53,7 +55,7 @@ def test_falls_back_to_the_widest_width_that_passes(cache):
     entry = next(iter(json.loads(cache.read_text()).values()))
     assert entry["width"] == got.width and entry["real"] == "float"
     # another precision is another decision
-    assert width.choose(p, d, "double", probe_fn=fake_probe).width == min(4, width.preferred(d, "double"))
+    assert width.choose(p, d, "double", probe_fn=fake_probe).width == min(4, width.candidates(d, "double")[0])
 
 
 def test_no_width_works_is_one_clear_error(cache):
@@ -237,35 +239,43 @@ def test_a_run_that_died_building_moves_the_program_to_a_new_cache_key(tmp_path,
     assert len(lines) == 1
 
 
-@pytest.mark.skipif(len(POCL) < 2,
-                    reason="only one PoCL build installed (apt-get install pocl-opencl-icd adds Debian's)")
-def test_every_pocl_build_gives_the_same_fit(demo_db):
+@pytest.mark.skipif(len(CPU_RUNTIMES) < 2, reason="only one CPU runtime builds here (apt-get install "
+                    "pocl-opencl-icd adds Debian's PoCL, pip install '.[intel-cpu]' Intel's)")
+def test_every_cpu_runtime_gives_the_same_fit(demo_db):
     (table,) = [read_merl(demo_db / "synth-smooth-metal.binary")]
     losses = {}
-    for dev in POCL:
+    for dev in CPU_RUNTIMES:
         (res,) = fit_tables([table], FitOptions(model="diffuse+diffraction+ggx", device=dev))
         losses[dev] = res.loss
         assert res.success
-    ref = losses[POCL[0]]
-    assert all(v == pytest.approx(ref, rel=1e-5) for v in losses.values()), losses
+    ref = losses[CPU_RUNTIMES[0]]
+    assert all(v == pytest.approx(ref, rel=1e-5, abs=1e-12) for v in losses.values()), losses
 
 
-def test_newest_pocl_is_the_default():
-    devs = [pd for pd in all_devices() if "portable computing" in pd[0].name.lower()]
-    if not devs:
-        pytest.skip("no PoCL platform")
-    from brdfcl.device.platforms import pick_device
-    p, _ = pick_device(None)
-    assert pocl_version(p) == max(pocl_version(q) for q, _ in devs)
+def test_the_default_is_the_first_device_that_builds_in_order():
+    from brdfcl.device import platforms
+    devs = all_devices()
+    order = platforms.preference(devs)
+    first = next(i for i in order if platforms.check(i, devs).ok)
+    p, d = platforms.pick_device(None)
+    assert (p.int_ptr, d.int_ptr) == (devs[first][0].int_ptr, devs[first][1].int_ptr)
+    pocl = [i for i in order if is_pocl(*devs[i])]
+    versions = [platforms.pocl_version(devs[i][0]) for i in pocl]
+    assert versions == sorted(versions, reverse=True)                # the newest PoCL first
+    assert all(not is_pocl(*devs[i]) for i in order[len(pocl):]) or not pocl
 
 
-def test_info_shows_width_reason_and_self_test():
+def test_info_shows_status_width_reason_and_self_test():
     r = subprocess.run([sys.executable, "-m", "brdfcl.app.cli", "info"], capture_output=True, text=True, timeout=900)
     assert r.returncode == 0, r.stderr
     lines = [ln.strip() for ln in r.stdout.splitlines()]
     float_lines = [ln for ln in lines if ln.startswith("float: vector width")]
-    assert len(float_lines) == len(all_devices())
+    status = [ln for ln in lines if ln.startswith("status: ")]
+    assert len(status) == len(all_devices()) and sum(ln.endswith("; chosen") for ln in status) == 1, status
+    assert len(float_lines) == sum(ln.startswith("status: builds") for ln in status)
     assert all("self-test passed" in ln and "(" in ln for ln in float_lines), float_lines
+    assert lines[-1].startswith("default device: ")
+    assert max(map(len, r.stdout.splitlines() + r.stderr.splitlines())) <= 200
 
 
 def test_the_kernel_hash_follows_every_term_module(tmp_path, monkeypatch):

@@ -7,6 +7,7 @@ make FitOptions, shared by fit-all and analyze, are brdfcl.app.arguments.  A com
 from __future__ import annotations
 
 import argparse
+import logging
 import os
 import sys
 
@@ -15,22 +16,48 @@ from brdfcl.app.arguments import UsageError, add_database_arguments, default_of,
 
 # fit_options and UsageError are this module's too (tests and scripts import them from here)
 __all__ = ["UsageError", "build_parser", "fit_options", "main"]
+MESSAGE_CHARS = 300                 # an error line longer than this is cut (its start says what)
 
 
 def cmd_info(args):
     import pyopencl as cl
 
-    from brdfcl.device.platforms import all_devices, describe_device, has_fp64, pick_device
+    from brdfcl.device import buildcheck, cpu, runtimes
+    from brdfcl.device.platforms import DeviceError, all_devices, check, describe_device, has_fp64, pick_device
     from brdfcl.device.width import forced_width
     forced_width(args.vector_width)             # a bad BRDFCL_VECTOR_WIDTH: one line, exit 2
-    print(f"brdfcl {__version__}, pyopencl {cl.VERSION_TEXT}")
-    for i, (p, d) in enumerate(all_devices()):
+    print(f"brdfcl {__version__}, pyopencl {cl.VERSION_TEXT}, CPU: {cpu.name()}")
+    devs = all_devices()
+    loaded = {str(rt.library): rt for rt in runtimes.prepare()}
+    quiet = logging.getLogger("brdfcl")
+    level, _ = quiet.level, quiet.setLevel(logging.ERROR)   # what pick_device notes is listed below
+    try:
+        chosen = pick_device(args.device)
+    except DeviceError as e:
+        chosen, why_none = None, str(e)
+    finally:
+        quiet.setLevel(level)
+    for i, (p, d) in enumerate(devs):
         for line in describe_device(i, p, d):
             print(line)
-        for real in ("float", "double") if has_fp64(d) else ("float",):
-            print(f"     {real}: {_program_check(i, real, args.vector_width)}", flush=True)
-    p, d = pick_device(args.device)
-    print(f"default device: {d.name} on {p.name} ({p.version})")
+        c = check(i, devs)
+        is_chosen = chosen is not None and (p.int_ptr, d.int_ptr) == (chosen[0].int_ptr, chosen[1].int_ptr)
+        status = "builds programs" if c.ok else f"cannot build a program: {c.reason}"
+        print(f"     status: {status}{'; chosen' if is_chosen else ''}"
+              + (f" (build log: {c.log})" if c.log and not c.ok else ""))
+        if c.ok:
+            for real in ("float", "double") if has_fp64(d) else ("float",):
+                print(f"     {real}: {_program_check(i, real, args.vector_width)}", flush=True)
+    for rt in loaded.values():
+        print(f"loaded by brdfcl: {rt.name} {rt.version} from {rt.library.parent} (pip's intel-opencl-rt)")
+    if chosen is None:
+        print(f"no device: {why_none}")
+        return 1
+    p, d = chosen
+    left = [f"{buildcheck.label(q)} ({c.reason})" for j, (q, _) in enumerate(devs) for c in [check(j, devs)]
+            if not c.ok]
+    print(f"default device: {d.name} on {buildcheck.label(p)} ({p.version.strip()})"
+          + (f"; left out: {'; '.join(left)}" if left else ""))
     return 0
 
 
@@ -42,7 +69,7 @@ def _program_check(index, real, vector_width):
     try:
         eng = Engine(DEFAULT_MODEL, device=str(index), real=real, vector_width=vector_width)
     except (ProgramError, ValueError) as e:
-        return f"no working program: {e}"
+        return f"no working program: {e.cause if isinstance(e, ProgramError) else e}"
     w = eng.width
     why = w.reason if w is not None else "not a CPU: one cell per work-item"
     return f"vector width {eng.opt.vw} ({why}); self-test {eng.self_test}"
@@ -294,7 +321,10 @@ def main(argv=None):
         from brdfcl.model.compose import ModelError
         known = (UsageError, MerlError, ModelError, DeviceError, OSError, ValueError, WorkerError)
         kind = "" if isinstance(e, known) else f"{type(e).__name__}: "
-        print(f"brdfcl: error: {kind}{e}", file=sys.stderr)
+        text = " ".join(f"{kind}{e}".split())
+        if len(text) > MESSAGE_CHARS:
+            text = text[:MESSAGE_CHARS - 40].rstrip() + " [...] (--debug shows all)"
+        print(f"brdfcl: error: {text}", file=sys.stderr)
         return 2
 
 

@@ -95,13 +95,13 @@ class Engine:
             return _PROGRAMS[key]
         repair_pocl_cache(self.platform, log=_log.warning)
         started = time.time_ns() - 2_000_000_000     # file times may lag the clock
-        failures = []
+        failures: list[ProgramError] = []
         with crash_guard(self.source, self.device, log=_log.warning) as first:
             for attempt in (first, first + 1):
                 try:
                     program, self._kernels = build(self.ctx, self.device, self.source, attempt)
                 except ProgramError as e:
-                    failures.append(str(e))
+                    failures.append(e)
                     continue
                 result = selftest.check(self) if verify else None
                 if result is None or result.ok:
@@ -110,14 +110,16 @@ class Engine:
                     if failures:
                         keep_attempt(self.source, self.device, attempt)
                         _log.warning(f"brdfcl: rebuilt the {self.model.spec} program on {self.device.name}: "
-                                     f"the cached build failed ({failures[0]})")
+                                     f"the cached build failed ({failures[0].cause})")
                     _PROGRAMS[key] = (program, result)
                     return _PROGRAMS[key]
-                failures.append(f"self-test {result.detail}")
+                failures.append(ProgramError(f"self-test {result.detail}"))
+        last = failures[-1]
         hint = (f"; try a narrower --vector-width (or {width.ENV}) than {self.opt.vw}"
-                if self.opt.vw > 1 else "")
-        raise ProgramError(f"the {self.model.spec} program ({self.opt.real}, vector width {self.opt.vw}) "
-                           f"does not work on {self.device.name}: {failures[-1]}{hint}")
+                if self.opt.vw > 1 and last.log is None else "")
+        where = f" (build log: {last.log})" if last.log else ""
+        raise ProgramError(f"{self.model.spec} ({self.opt.real} x{self.opt.vw}) fails on {self.device.name}: "
+                           f"{last.cause}{hint}{where}", last.cause, last.log)
 
     # --- data ------------------------------------------------------------------------------------
     def cellset(self, tables, index=None, cutoff_deg=DEFAULT_CUTOFF_DEG, **kw) -> CellSet:

@@ -1,16 +1,20 @@
 """OpenCL platform and device choice.
 
-Default: the first CPU device of the newest PoCL platform (Debian's 3.1 build is
-preferred to the pip wheel's 3.0 when both are present), else the
-first device with float64.  ``BRDFCL_DEVICE`` or ``--device`` pick another:
-an index ``P:D`` or ``D`` (into the flat list of ``brdfcl info``) or a
-substring of the platform's name or version or of the device's name (``nvidia``,
-``pocl 3.0``, ``cpu``).
+Default: the first device with float64 that can build a program (brdfcl.device.buildcheck), in
+this order: the PoCL platforms, newest first (Debian's 3.1 build before the pip wheel's 3.0),
+then Intel's CPU runtime, then any other.  A platform that cannot build is left out with one
+line saying why.  ``BRDFCL_DEVICE`` or ``--device`` pick another: an index ``P:D`` or ``D``
+(into the flat list of ``brdfcl info``) or a substring of the platform's name or version or of
+the device's name (``nvidia``, ``pocl 3.0``, ``intel``, ``cpu``).  The runtimes pip installed
+are made loadable before the first listing (brdfcl.device.runtimes).
 """
 from __future__ import annotations
 
+import logging
 import os
 import re
+
+from brdfcl.device import buildcheck, runtimes
 
 
 class DeviceError(RuntimeError):
@@ -18,6 +22,7 @@ class DeviceError(RuntimeError):
 
 
 def _cl():
+    runtimes.prepare()
     try:
         import pyopencl as cl
     except ImportError as e:  # pragma: no cover
@@ -65,35 +70,84 @@ def _kind(d):
     return "GPU" if t & cl.device_type.GPU else "CPU" if t & cl.device_type.CPU else "accelerator"
 
 
+def selector_of(platform, device) -> str:
+    """``P:D``, the platform and device indices that name this device in another process."""
+    for pi, p in enumerate(_cl().get_platforms()):
+        if p.int_ptr == platform.int_ptr:
+            for di, d in enumerate(p.get_devices()):
+                if d.int_ptr == device.int_ptr:
+                    return f"{pi}:{di}"
+    raise DeviceError(f"device {device.name} not found among the OpenCL platforms")
+
+
+def check(index: int, devs=None) -> buildcheck.Check:
+    """Whether the ``index``-th device of ``all_devices()`` can build a program (cached)."""
+    devs = devs if devs is not None else all_devices()
+    p, d = devs[index]
+    return buildcheck.check(p, d, selector_of(p, d))
+
+
+def preference(devs) -> list:
+    """Indices of ``devs`` in the order of the default choice (see the module docstring)."""
+    def rank(i):
+        p, d = devs[i]
+        pocl = "portable computing" in p.name.lower()
+        intel_cpu = "intel" in p.name.lower() and _kind(d) == "CPU"
+        major, minor, release = pocl_version(p)
+        return (not has_fp64(d), 0 if pocl else 1 if intel_cpu else 2, -major, -minor, not release, i)
+    return sorted(range(len(devs)), key=rank)
+
+
+_NOTED: set = set()
+
+
+def _note(message: str) -> None:
+    """A line for the user, once per process (the default choice is made by every engine)."""
+    if message not in _NOTED:
+        _NOTED.add(message)
+        logging.getLogger("brdfcl").warning(message)
+
+
 def pick_device(selector: str | None = None):
     """(platform, device) for a selector; see the module docstring."""
     selector = selector if selector is not None else os.environ.get("BRDFCL_DEVICE")
     devs = all_devices()
     if not devs:
-        raise DeviceError("no OpenCL device found; install pyopencl[pocl] for the CPU device")
+        raise DeviceError(f"no OpenCL device found; install {runtimes.INSTALL_HINT}")
     if selector in (None, "", "default"):
-        pocl = [pd for pd in devs if "portable computing" in pd[0].name.lower()]
-        # The newest PoCL first: Debian's pocl-opencl-icd (3.1) before the pip wheel's (3.0-rc2).
-        pocl.sort(key=lambda pd: pocl_version(pd[0]), reverse=True)
-        for p, d in pocl + devs:
-            if has_fp64(d):
+        left_out = []
+        for i in preference(devs):
+            c = check(i, devs)
+            if c.ok:
+                p, d = devs[i]
+                if left_out:
+                    _note(f"brdfcl: {'; '.join(left_out)}; using {buildcheck.label(p)} ({d.name})")
                 return p, d
-        return devs[0]
+            left_out.append(f"{buildcheck.label(devs[i][0])}: {c.reason}")
+        more = f"; {len(left_out) - 1} more: brdfcl info" if len(left_out) > 1 else ""
+        raise DeviceError(f"no OpenCL device builds here ({left_out[0]}{more}); install: {runtimes.INSTALL_HINT}")
+    i = _select(selector, devs)
+    c = check(i, devs)
+    if not c.ok:
+        raise DeviceError(f"device '{selector}' ({buildcheck.label(devs[i][0])}) cannot build a program: {c.reason}")
+    return devs[i]
+
+
+def _select(selector: str, devs) -> int:
+    """The index into ``devs`` that a selector names."""
     if selector.replace(":", "").isdigit():
         if ":" in selector:
             pi, di = (int(s) for s in selector.split(":"))
-            plats = _cl().get_platforms()
-            try:
-                return plats[pi], plats[pi].get_devices()[di]
-            except IndexError:
-                pass
+            for i, (p, d) in enumerate(devs):
+                if selector_of(p, d) == f"{pi}:{di}":
+                    return i
         elif int(selector) < len(devs):
-            return devs[int(selector)]
+            return int(selector)
         raise DeviceError(f"no OpenCL device '{selector}'; {_choices(devs)}")
     s = selector.lower()
-    for p, d in devs:
+    for i, (p, d) in enumerate(devs):
         if s in p.name.lower() or s in p.version.lower() or s in d.name.lower() or s == _kind(d).lower():
-            return p, d
+            return i
     raise DeviceError(f"no OpenCL device matches '{selector}'; {_choices(devs)}")
 
 

@@ -23,7 +23,7 @@ def main(argv=None):
     try:
         eng = Engine(DEFAULT_MODEL, device=a.device, real=a.real, verify=False, vw=a.width)
     except ProgramError as e:
-        print(json.dumps({"ok": False, "detail": str(e)}))
+        print(json.dumps({"ok": False, "detail": e.cause, "log": str(e.log) if e.log else None}))
         return 0
     res = selftest.check(eng)
     n_abi = build_log(eng.program, eng.device).count(ABI_WARNING)

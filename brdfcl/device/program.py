@@ -17,15 +17,17 @@ from __future__ import annotations
 
 import gc
 import hashlib
-import json
 import os
 import shutil
 import struct
+import warnings
 from contextlib import contextmanager
 from pathlib import Path
 
 import pyopencl as cl
 
+from brdfcl.device import buildlog
+from brdfcl.device.cache import cache_dir, read_json, update_json, write_json
 from brdfcl.device.platforms import DeviceError
 
 KERNELS = ("target", "loss", "grad", "jtj", "errors", "predict")
@@ -35,7 +37,14 @@ _REPAIRED: set = set()
 
 
 class ProgramError(DeviceError):
-    """A program that cannot be built or used on a device; the message is one line."""
+    """A program that cannot be built or used on a device; the message is one line.  ``cause``
+    is the compiler's first error (or the failing check) alone, ``log`` the file with the whole
+    build log (None when there is none)."""
+
+    def __init__(self, message: str, cause: str = "", log: Path | None = None):
+        super().__init__(message)
+        self.cause = cause or message
+        self.log = log
 
 
 def pocl_cache_dir(platform) -> Path | None:
@@ -127,15 +136,6 @@ def _sound(path: Path) -> bool:
     return sound_bitcode(path) if path.suffix == ".bc" else sound_elf(path)
 
 
-def cache_dir() -> Path:
-    """brdfcl's own cache: ``BRDFCL_CACHE_DIR``, else ``$XDG_CACHE_HOME/brdfcl`` or ``~/.cache/brdfcl``."""
-    base = os.environ.get("BRDFCL_CACHE_DIR")
-    if not base:
-        xdg = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-        base = os.path.join(xdg, "brdfcl")
-    return Path(base)
-
-
 def _alive(pid: int) -> bool:
     try:
         os.kill(pid, 0)
@@ -190,30 +190,6 @@ def keep_attempt(source: str, device, attempt: int) -> None:
         update_json(cache_dir() / "program-keys.json", _guard_key(source, device), attempt)
     except OSError:
         pass
-
-
-def read_json(path: Path) -> dict:
-    """A JSON object of brdfcl's cache; {} when it is missing or not one."""
-    try:
-        d = json.loads(path.read_text())
-        return d if isinstance(d, dict) else {}
-    except (OSError, ValueError):
-        return {}
-
-
-def update_json(path: Path, key: str, value) -> None:
-    """Set one key of a JSON object in brdfcl's cache, replacing the file atomically."""
-    d = read_json(path)
-    d[key] = value
-    write_json(path, d)
-
-
-def write_json(path: Path, d: dict) -> None:
-    """Replace a JSON file of brdfcl's cache atomically."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
-    tmp.write_text(json.dumps(d, indent=1, sort_keys=True))
-    os.replace(tmp, path)
 
 
 def _dirs(path: str) -> list:
@@ -367,10 +343,13 @@ def build(ctx, device, source: str, attempt: int = 0):
         options.append(f"-DBRDFCL_CACHE_KEY={attempt}")
     program = cl.Program(ctx, source)
     try:
-        program.build(options=options, devices=[device])
+        with warnings.catch_warnings():         # Intel's compiler always logs; failures are ours to tell
+            warnings.simplefilter("ignore", cl.CompilerWarning)
+            program.build(options=options, devices=[device])
         kernels = {k: cl.Kernel(program, k) for k in KERNELS}
     except cl.Error as e:
-        failed = ProgramError(f"OpenCL build failed on {device.name}: {_what(e)}")
+        f = buildlog.failure(e, f"build on {device.name}, options {' '.join(options)}")
+        failed = ProgramError(f"cannot build on {device.name}: {f.cause}{f.where()}", f.cause, f.log)
     else:
         return program, kernels
     del program
@@ -383,11 +362,3 @@ def build_log(program, device) -> str:
         return program.get_build_info(device, cl.program_build_info.LOG) or ""
     except cl.Error:
         return ""
-
-
-def _what(e) -> str:
-    """A pyopencl error as one readable line (its default str can be a bare object repr)."""
-    rec = e.args[0] if e.args else None
-    what = getattr(rec, "what", None)
-    text = what() if callable(what) else (what or str(e))
-    return " ".join(str(text).split())[:300]

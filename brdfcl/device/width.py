@@ -27,7 +27,10 @@ from pathlib import Path
 import pyopencl as cl
 
 from brdfcl._version import __version__
-from brdfcl.device.program import ABI_WARNING, ProgramError, cache_dir, read_json, update_json
+from brdfcl.device import cpu
+from brdfcl.device.cache import cache_dir, read_json, update_json
+from brdfcl.device.platforms import selector_of
+from brdfcl.device.program import ABI_WARNING, ProgramError
 from brdfcl.kernels.codegen import kernel_sources_hash
 
 ENV = "BRDFCL_VECTOR_WIDTH"
@@ -75,28 +78,19 @@ def preferred(device, real) -> int:
 
 
 def candidates(device, real) -> list:
-    """Widths to try on a device, widest first."""
+    """Widths to try on a device, widest first: on a CPU from the wider of what the device
+    reports and what the CPU's own registers hold (Intel's runtime reports one float on an
+    AVX-512 CPU, where 16 run fastest), down to one."""
     if not is_cpu(device):
         return [1]
-    top = preferred(device, real)
+    top = max(preferred(device, real), min(16, cpu.native_width(real)))
     return [w for w in reversed(WIDTHS) if w <= top]
-
-
-def _cpu_flags() -> str:
-    try:
-        with open("/proc/cpuinfo") as f:
-            for line in f:
-                if line.startswith(("flags", "Features")):
-                    return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return ""
 
 
 def device_key(platform, device, real) -> str:
     """What the decision depends on: driver, device, the CPU's instruction sets, our kernels."""
     parts = [platform.name, platform.version, device.name, device.vendor, device.driver_version,
-             _cpu_flags() if is_cpu(device) else "", cl.VERSION_TEXT, __version__, kernel_sources_hash(), real]
+             cpu.flags() if is_cpu(device) else "", cl.VERSION_TEXT, __version__, kernel_sources_hash(), real]
     return hashlib.sha1("\n".join(parts).encode()).hexdigest()[:20]
 
 
@@ -115,12 +109,7 @@ def _locked(path: Path):
 
 def device_selector(platform, device) -> str:
     """``P:D`` indices that name this device in another process."""
-    for pi, p in enumerate(cl.get_platforms()):
-        if p.int_ptr == platform.int_ptr:
-            for di, d in enumerate(p.get_devices()):
-                if d.int_ptr == device.int_ptr:
-                    return f"{pi}:{di}"
-    raise ValueError(f"device {device.name} not found among the OpenCL platforms")
+    return selector_of(platform, device)
 
 
 def probe(selector: str, real: str, width: int) -> dict:
@@ -184,17 +173,29 @@ def _entry(table: dict, key: str) -> dict | None:
 
 def _probe_all(platform, device, real, widths, log, probe_fn) -> dict:
     selector = device_selector(platform, device)
-    tried: list[str] = []
+    tried: dict[str, list[int]] = {}            # each outcome with the widths that had it
+    logs = []
     for w in widths:
         if log:
             log(f"checking vector width {w} ({real}) on {device.name}: build and self-test")
         res = probe_fn(selector, real, w)
         if res.get("ok"):
-            why = f"device prefers {widths[0]}" + (f"; {'; '.join(tried)}" if tried else "") + f"; {w} passed"
+            why = (f"device reports {preferred(device, real)}, the CPU holds {cpu.native_width(real)}"
+                   + (f"; {_outcomes(tried)}" if tried else "") + f"; {w} passed")
             return {"width": w, "reason": why, "selftest": res.get("detail", "passed"),
                     "device": device.name, "platform": platform.version, "real": real}
-        tried.append(f"{w} failed: {res.get('detail', '?')}")
-    raise ProgramError(f"no vector width works on {device.name} ({real}): {'; '.join(tried)}")
+        tried.setdefault(str(res.get("detail", "?")), []).append(w)
+        logs += [res["log"]] if res.get("log") else []
+    where = f" (build log: {logs[0]})" if logs else ""
+    raise ProgramError(f"no vector width works on {device.name} ({real}): {_outcomes(tried)}{where}",
+                       _outcomes(tried), Path(logs[0]) if logs else None)
+
+
+def _outcomes(tried: dict) -> str:
+    """``16, 8 failed: crashed (signal 11); 4 failed: ...``, each outcome cut to one short clause."""
+    def short(detail):
+        return detail if len(detail) <= 90 else detail[:87] + "..."
+    return "; ".join(f"{', '.join(map(str, ws))} failed: {short(d)}" for d, ws in tried.items())
 
 
 def describe(platform, device, real, log=None) -> str:

@@ -1,0 +1,40 @@
+"""brdfcl's own cache folder and the small JSON files it keeps there (vector widths, program
+keys, kernel-cache fingerprints, platform checks), each replaced atomically."""
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+
+def cache_dir() -> Path:
+    """brdfcl's own cache: ``BRDFCL_CACHE_DIR``, else ``$XDG_CACHE_HOME/brdfcl`` or ``~/.cache/brdfcl``."""
+    base = os.environ.get("BRDFCL_CACHE_DIR")
+    if not base:
+        xdg = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+        base = os.path.join(xdg, "brdfcl")
+    return Path(base)
+
+
+def read_json(path: Path) -> dict:
+    """A JSON object of brdfcl's cache; {} when it is missing or not one."""
+    try:
+        d = json.loads(path.read_text())
+        return d if isinstance(d, dict) else {}
+    except (OSError, ValueError):
+        return {}
+
+
+def update_json(path: Path, key: str, value) -> None:
+    """Set one key of a JSON object in brdfcl's cache, replacing the file atomically."""
+    d = read_json(path)
+    d[key] = value
+    write_json(path, d)
+
+
+def write_json(path: Path, d: dict) -> None:
+    """Replace a JSON file of brdfcl's cache atomically."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
+    tmp.write_text(json.dumps(d, indent=1, sort_keys=True))
+    os.replace(tmp, path)
