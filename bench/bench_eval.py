@@ -10,9 +10,9 @@ ratios of throughputs (material-cells per second) measured side by side.
 
     python bench/bench_eval.py [--data DIR] [--model diffuse+diffraction+ggx]
 
-It also compares, round-robin in the same run, every PoCL build present (the pip
-wheel's, Debian's pocl-opencl-icd) at the width brdfcl chooses and at the narrower
-safe widths.
+It also compares, round-robin in the same run, every CPU runtime that builds here (the pip
+wheel's PoCL, Debian's pocl-opencl-icd, Intel's OpenCL CPU runtime) at the width brdfcl chooses
+and at the narrower safe widths; a runtime that cannot build on this CPU is named as left out.
 """
 from __future__ import annotations
 
@@ -150,16 +150,39 @@ def roofline(eng, repeat):
     return bw, flops, cost
 
 
-def pocl_devices():
-    """Flat device indices (brdfcl info) of every PoCL CPU device present."""
+def cpu_runtimes():
+    """(flat device indices (brdfcl info) of every CPU device that builds programs here: each PoCL
+    build, Intel's runtime; lines naming each CPU device left out and why)."""
+    from brdfcl.device.buildcheck import label
+    from brdfcl.device.platforms import all_devices, check
+    devs = all_devices()
+    use, left = [], []
+    for i, (p, d) in enumerate(devs):
+        if not d.type & cl.device_type.CPU:
+            continue
+        c = check(i, devs)
+        if c.ok:
+            use.append(str(i))
+        else:
+            left.append(f"{label(p)} left out: it cannot build a program on this CPU ({c.reason}).")
+    return use, left
+
+
+def is_pocl(dev) -> bool:
     from brdfcl.device.platforms import all_devices
-    return [str(i) for i, (p, d) in enumerate(all_devices())
-            if "portable computing" in p.name.lower() and d.type & cl.device_type.CPU]
+    return "portable computing" in all_devices()[int(dev)][0].name.lower()
+
+
+def runtime_name(eng) -> str:
+    """The platform's version for a table row (``OpenCL 3.0 PoCL 3.1+debian``, ``OpenCL 3.1 LINUX
+    (Intel(R) OpenCL)``)."""
+    version = eng.device.platform.version.split("  ")[0]
+    return version if "pocl" in version.lower() else f"{eng.device.platform.name} ({version})"
 
 
 def sample_data(paths, n_mat):
     """(names, values (n, 3, cells) float64 at the fitted cells) of the first ``n_mat`` files: the
-    materials of the per-kernel roofline and of the PoCL comparison, read once for both."""
+    materials of the per-kernel roofline and of the runtime comparison, read once for both."""
     from brdfcl.data.inputs import FileReader
     from brdfcl.device.engine import extract
     names, (data,) = extract([FileReader(p) for p in paths[:n_mat]], [select_cells()], np.float64)
@@ -167,19 +190,19 @@ def sample_data(paths, n_mat):
 
 
 def compare(args, names, data):
-    """Loss + gradient throughput of every PoCL build present at the width brdfcl chooses and at
+    """Loss + gradient throughput of every CPU runtime that builds here at the width brdfcl chooses and at
     the narrower safe widths (8 floats, 4 doubles), measured round-robin in one run: each round
     times every configuration once, so machine noise hits them alike; medians over rounds.
     ``names``, ``data``: `sample_data`."""
     idx = select_cells()
     configs = []
-    for dev in pocl_devices():
+    for dev in cpu_runtimes()[0]:
         for real, safe in (("float", 8), ("double", 4)):
             chosen = Engine(args.model, device=dev, real=real, metric=args.metric)
             for vw in sorted({chosen.opt.vw, safe}, reverse=True):
                 eng = chosen if vw == chosen.opt.vw else Engine(args.model, device=dev, real=real,
                                                                 metric=args.metric, vector_width=vw)
-                configs.append({"device": dev, "platform": eng.device.platform.version.split("  ")[0],
+                configs.append({"device": dev, "platform": runtime_name(eng),
                                 "real": real, "vw": vw, "chosen": vw == chosen.opt.vw, "eng": eng})
     for c in configs:
         c["cs"] = c["eng"].upload(names, idx, data.astype(c["eng"].dtype))
@@ -202,11 +225,11 @@ def compare(args, names, data):
 
 def compare_lines(configs, n_mat, repeat):
     base = {c["real"]: c for c in configs if c["chosen"] and c["device"] == configs[0]["device"]}
-    lines = ["## Vector widths and PoCL builds, side by side", "",
+    lines = ["## Vector widths and CPU runtimes, side by side", "",
              f"Loss + gradient of all {n_mat} materials in one launch, every configuration timed once per "
              f"round, {repeat} rounds, medians; ratios against the default device's chosen width "
              f"(`*`: the width brdfcl chooses on that device).", "",
-             "| PoCL | precision | vector width | time (s) | material-cells/s | relative throughput |",
+             "| runtime | precision | vector width | time (s) | material-cells/s | relative throughput |",
              "|---|---|---|---|---|---|"]
     for c in configs:
         lines.append(f"| {c['platform']} | {c['real']} | {c['vw']}{' *' if c['chosen'] else ''} | "
@@ -290,7 +313,7 @@ def flops_per_cell(ops, trans, cost):
 
 
 def kernel_rooflines(args, names, data):
-    """Per PoCL present (the chosen device if none), float32 at the width brdfcl chooses: the
+    """Per CPU runtime that builds here (the chosen device if none), float32 at the width brdfcl chooses: the
     device's roofline (`roofline`) and, for the loss, gradient and J^T J kernels over the materials
     ``names``, ``data`` (`sample_data`) in one launch, the work per cell (`op_count`,
     `flops_per_cell`), the achieved rate and its fraction of the roofline and of the FMA peak.
@@ -298,7 +321,7 @@ def kernel_rooflines(args, names, data):
     idx = select_cells()
     data = data.astype(np.float32)
     rows = []
-    for dev in pocl_devices() or [args.device]:
+    for dev in cpu_runtimes()[0] or [args.device]:
         eng = Engine(args.model, device=dev, real="float", metric=args.metric)
         cs = eng.upload(names, idx, data)
         V = np.tile(eng.model.defaults(), (len(names), 1))
@@ -308,7 +331,7 @@ def kernel_rooflines(args, names, data):
         v_small = np.tile(eng.model.defaults(), (len(names) * CACHED, 1))
         m_small = np.zeros(len(names) * CACHED, dtype=np.int64)
         bw, peak, cost = roofline(eng, args.repeat)
-        mixes = instruction_mix(args, dev, len(names)) if dev is not None else {}
+        mixes = instruction_mix(args, dev, len(names)) if dev is not None and is_pocl(dev) else {}
         for kernel in KERNELS:
             run = getattr(eng, kernel)
             sec = median_time(lambda run=run: run(cs, V, mats), args.repeat)
@@ -318,7 +341,7 @@ def kernel_rooflines(args, names, data):
             work = flops_per_cell(ops, trans, cost)
             achieved = len(names) * idx.size / sec * work        # flop/s
             attainable = min(peak, work / BYTES_PER_CELL * bw)
-            rows.append({"platform": eng.device.platform.version.split("  ")[0], "vw": eng.opt.vw,
+            rows.append({"platform": runtime_name(eng), "vw": eng.opt.vw,
                          "kernel": kernel, "ops": ops, "trans": trans, "work": work, "seconds": sec,
                          "achieved": achieved, "attainable": attainable, "peak": peak,
                          "bandwidth": bw, "cost": cost, "mix": mixes.get(kernel),
@@ -328,7 +351,7 @@ def kernel_rooflines(args, names, data):
 
 
 def kernel_roofline_lines(rows, n_mat, repeat):
-    lines = ["## Roofline per kernel and PoCL", "",
+    lines = ["## Roofline per kernel and CPU runtime", "",
              f"float32, {n_mat} materials in one launch, medians of {repeat}; each device's bandwidth, FMA peak "
              "and builtin costs measured in the same run (`roofline`). Work per cell counted in the generated "
              "source (comments removed, inline functions expanded, dead code not removed: an upper estimate for "
@@ -339,7 +362,7 @@ def kernel_roofline_lines(rows, n_mat, repeat):
              "held in cache) over its rate on the full tables; bound: memory where the kernel runs more than 15% "
              "faster in cache, else compute (measured so: the streaming read of a shared machine moves from run to "
              "run, and with it the roofline's corner).", "",
-             "| PoCL | width | kernel | ops + calls per cell | flops per cell | achieved (GFLOP/s) | "
+             "| runtime | width | kernel | ops + calls per cell | flops per cell | achieved (GFLOP/s) | "
              "FMA peak (GFLOP/s) | of the roofline | of the FMA peak | in-cache rate | bound |",
              "|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
@@ -492,7 +515,7 @@ def main(argv=None):
                     help="materials timed with numpy (it is slow; throughput is per material-cell)")
     ap.add_argument("--device", default=None)
     ap.add_argument("--compare-materials", type=int, default=24,
-                    help="materials in the side-by-side comparison of widths and PoCL builds (0: skip it)")
+                    help="materials in the side-by-side comparison of widths and CPU runtimes (0: skip it)")
     ap.add_argument("--out", default=str(HERE / "results"))
     args = ap.parse_args(argv)
 
@@ -546,8 +569,9 @@ def main(argv=None):
              "material-cells/s | speed-up vs numpy float64 |", "|---|---|---|---|---|"]
     for name, nm, tt, rate in rows:
         lines.append(f"| {name} | {nm} | {tt:.3f} | {rate:.3g} | {rate / ref:.1f}x |")
-    lines += ["", "The kernels on a roofline: the per-kernel table below (measured per PoCL, beside the kernels' "
-              "own timings).", "", f"Database load (read 80 files, upload float32 cells): {notes['load_s']:.1f} s."]
+    lines += ["", "The kernels on a roofline: the per-kernel table below (measured per CPU runtime, beside the "
+              "kernels' own timings).", "",
+              f"Database load (read 80 files, upload float32 cells): {notes['load_s']:.1f} s."]
     scattered = scattered_throughput(args, rows[0][3] * 3, n_mat)
     if scattered:
         lines += [""] + scattered
@@ -557,11 +581,13 @@ def main(argv=None):
     mix = mix_lines(k_rows)
     lines += [""] + mix if mix else []
     cmp_rows = []
-    if args.compare_materials and pocl_devices():
+    runtimes, left_out = cpu_runtimes()
+    if args.compare_materials and runtimes:
         cmp_rows, n_cmp = compare(args, *sample)
         lines += [""] + compare_lines(cmp_rows, n_cmp, args.repeat)
     elif args.compare_materials:
-        lines += ["", "No PoCL CPU device here: the comparison of PoCL builds and vector widths is left out."]
+        lines += ["", "No CPU device builds here: the comparison of CPU runtimes and vector widths is left out."]
+    lines += [""] + left_out if left_out else []
     text = "\n".join(lines)
     print(text)
     out = Path(args.out)

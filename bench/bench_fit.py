@@ -444,9 +444,10 @@ def report(recs, batch_seconds, paths, all_paths, args, out):
                       "| device | brdfcl (s) | scipy, extrapolated (s) | speed-up vs scipy | PyTorch, extrapolated (s) "
                       "| speed-up vs PyTorch |", "|---|---|---|---|---|---|"]
             for dev, db in per_db.items():
-                tt = np.mean(t_torch) * len(all_paths) if t_torch else float("nan")
+                tt = np.mean(t_torch) * len(all_paths) if t_torch else None
+                torch_cells = f"{tt:.0f} | {tt / db:.0f}x" if tt else "not run | -"
                 lines.append(f"| {dev} | {db:.1f} | {per * len(all_paths):.0f} | {per * len(all_paths) / db:.0f}x | "
-                             f"{tt:.0f} | {tt / db:.0f}x |")
+                             f"{torch_cells} |")
             if t_torch:
                 lines.append(f"\nPyTorch's time is its whole run (Adam then L-BFGS) on {len(t_torch)} materials; "
                              "it does not reach scipy's error on every one (table above).")

@@ -104,9 +104,10 @@ def one_run(paths) -> dict:
 def device_name(selector: str | None = None) -> str:
     """The device ``selector`` picks (None: the one a default fit runs on, BRDFCL_DEVICE honoured),
     with its OpenCL platform."""
+    from brdfcl.device.buildcheck import label
     from brdfcl.device.platforms import pick_device
     p, d = pick_device(selector)
-    return f"{d.name.strip()} ({p.version.strip()})"
+    return f"{d.name.strip()} ({label(p)}, driver {d.driver_version.strip()})"
 
 
 def main():

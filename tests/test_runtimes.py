@@ -139,8 +139,9 @@ def test_a_platform_that_cannot_build_is_left_out_with_one_line(tmp_path):
     assert r.returncode == 0, r.stderr[-2000:]
     assert r.stdout.strip() == f"{then[0].name} | {then[1].name} True"
     notes = [ln for ln in r.stderr.splitlines() if ln.startswith("brdfcl: ")]
-    assert notes == [f"brdfcl: {buildcheck.label(broken)}: error: injected build failure ({buildcheck.BREAK_ENV}); "
-                     f"using {buildcheck.label(then[0])} ({then[1].name})"], r.stderr
+    assert len(notes) == 1, r.stderr
+    assert notes[0].startswith(f"brdfcl: {buildcheck.label(broken)}: error: injected build failure; ")
+    assert notes[0].endswith(f"; using {buildcheck.label(then[0])} ({then[1].name})") and len(notes[0]) <= LONGEST
     info = _run(["-m", "brdfcl.app.cli", "info"], env)
     assert info.returncode == 0, info.stderr
     assert "status: cannot build a program: error: injected build failure" in info.stdout

@@ -56,7 +56,8 @@ def cmd_info(args):
     p, d = chosen
     left = [f"{buildcheck.label(q)} ({c.reason})" for j, (q, _) in enumerate(devs) for c in [check(j, devs)]
             if not c.ok]
-    print(f"default device: {d.name} on {buildcheck.label(p)} ({p.version.strip()})"
+    index = next(i for i, (q, e) in enumerate(devs) if (q.int_ptr, e.int_ptr) == (p.int_ptr, d.int_ptr))
+    print(f"default device: [{index}] {d.name} on {buildcheck.label(p)}"
           + (f"; left out: {'; '.join(left)}" if left else ""))
     return 0
 

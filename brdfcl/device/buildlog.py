@@ -15,6 +15,7 @@ from brdfcl.device.cache import cache_dir
 
 CAUSE_CHARS = 100
 _ERROR = re.compile(r"\b(?:fatal )?error\b[:\s]", re.IGNORECASE)
+_WHERE = re.compile(r"^((?:fatal )?error:\s*)\S+:\d+:\d+:\s*(?:(?:fatal )?error:\s*)?", re.IGNORECASE)
 
 
 def error_text(e) -> str:
@@ -32,6 +33,7 @@ def cause(text: str) -> str:
     # pyopencl's own "clBuildProgram failed: BUILD_PROGRAM_FAILURE" says only that it failed
     hits = [h for h in hits if "BUILD_PROGRAM_FAILURE" not in h] or hits
     line = hits[0] if hits else (lines[0] if lines else "no build log")
+    line = _WHERE.sub(r"\1", line)              # the compiler's temporary file and position
     return line if len(line) <= CAUSE_CHARS else line[:CAUSE_CHARS - 3] + "..."
 
 

@@ -54,8 +54,10 @@ def describe_device(i, p, d):
 
 
 def describe():
-    """Lines for `brdfcl info`."""
-    return [line for i, (p, d) in enumerate(all_devices()) for line in describe_device(i, p, d)]
+    """Lines on every device, as `brdfcl info` prints them: what it reports and whether it builds."""
+    devs = all_devices()
+    return [line for i, (p, d) in enumerate(devs)
+            for line in describe_device(i, p, d) + [f"     status: {check(i, devs)}"]]
 
 
 def pocl_version(platform) -> tuple:
@@ -115,7 +117,7 @@ def pick_device(selector: str | None = None):
     if not devs:
         raise DeviceError(f"no OpenCL device found; install {runtimes.INSTALL_HINT}")
     if selector in (None, "", "default"):
-        left_out = []
+        left_out: list[str] = []
         for i in preference(devs):
             c = check(i, devs)
             if c.ok:
@@ -124,8 +126,8 @@ def pick_device(selector: str | None = None):
                     _note(f"brdfcl: {'; '.join(left_out)}; using {buildcheck.label(p)} ({d.name})")
                 return p, d
             left_out.append(f"{buildcheck.label(devs[i][0])}: {c.reason}")
-        more = f"; {len(left_out) - 1} more: brdfcl info" if len(left_out) > 1 else ""
-        raise DeviceError(f"no OpenCL device builds here ({left_out[0]}{more}); install: {runtimes.INSTALL_HINT}")
+        more = f"; +{len(left_out) - 1} in brdfcl info" if len(left_out) > 1 else ""
+        raise DeviceError(f"no OpenCL device builds here ({left_out[0]}{more}); install {runtimes.INSTALL_HINT}")
     i = _select(selector, devs)
     c = check(i, devs)
     if not c.ok:
@@ -152,5 +154,5 @@ def _select(selector: str, devs) -> int:
 
 
 def _choices(devs):
-    """The devices as one line, for errors (``brdfcl info`` lists them in full)."""
-    return "devices: " + "; ".join(f"[{i}] {d.name} on {p.version.split('  ')[0]}" for i, (p, d) in enumerate(devs))
+    """The devices as one short line, for errors (``brdfcl info`` lists them in full)."""
+    return "devices: " + "; ".join(f"[{i}] {buildcheck.label(p)} {_kind(d)}" for i, (p, d) in enumerate(devs))
