@@ -154,23 +154,17 @@ def cpu_runtimes():
     """(flat device indices (brdfcl info) of every CPU device that builds programs here: each PoCL
     build, Intel's runtime; lines naming each CPU device left out and why)."""
     from brdfcl.device.buildcheck import label
-    from brdfcl.device.platforms import all_devices, check
-    devs = all_devices()
-    use, left = [], []
-    for i, (p, d) in enumerate(devs):
-        if not d.type & cl.device_type.CPU:
-            continue
-        c = check(i, devs)
-        if c.ok:
-            use.append(str(i))
-        else:
-            left.append(f"{label(p)} left out: it cannot build a program on this CPU ({c.reason}).")
-    return use, left
+    from brdfcl.device.platforms import is_cpu, usable
+    found = usable(lambda p, d: is_cpu(d))
+    return ([str(i) for i, p, d, c in found if c.ok],
+            [f"{label(p)} left out: it cannot build a program on this CPU ({c.reason})." for i, p, d, c in found
+             if not c.ok])
 
 
 def is_pocl(dev) -> bool:
     from brdfcl.device.platforms import all_devices
-    return "portable computing" in all_devices()[int(dev)][0].name.lower()
+    from brdfcl.device.platforms import is_pocl as pocl
+    return pocl(all_devices()[int(dev)][0])
 
 
 def runtime_name(eng) -> str:

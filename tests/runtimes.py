@@ -4,33 +4,32 @@ is a case; each that cannot is a skipped case whose reason names the runtime and
 import pytest
 
 
-def device_params(keep=lambda p, d: True):
-    """pytest params (flat device index as a string) of the devices ``keep`` accepts."""
+def device_params(keep=None):
+    """pytest params (flat device index as a string) of the devices ``keep(p, d)`` accepts."""
     try:
         from brdfcl.device.buildcheck import label
-        from brdfcl.device.platforms import all_devices, check
-        devs = all_devices()
+        from brdfcl.device.platforms import usable
+        found = usable(keep)
     except Exception as e:              # no pyopencl or no platform
         return [pytest.param(None, marks=pytest.mark.skip(reason=f"no OpenCL device: {e}"))]
-    out = []
-    for i, (p, d) in enumerate(devs):
-        if not keep(p, d):
-            continue
-        c = check(i, devs)
-        marks = () if c.ok else pytest.mark.skip(reason=f"{label(p)} on this CPU: {c.reason}")
-        out.append(pytest.param(str(i), marks=marks, id=f"{label(p)}-{d.name[:24]}".replace(" ", "_")))
-    return out
+    return [pytest.param(str(i), marks=() if c.ok else pytest.mark.skip(reason=f"{label(p)} on this CPU: {c.reason}"),
+                         id=f"{label(p)}-{d.name[:24]}".replace(" ", "_")) for i, p, d, c in found]
 
 
 def is_pocl(p, d):
-    return "portable computing" in p.name.lower()
+    from brdfcl.device.platforms import is_pocl
+    return is_pocl(p)
 
 
 def is_cpu(p, d):
-    import pyopencl as cl
-    return bool(d.type & cl.device_type.CPU)
+    from brdfcl.device.platforms import is_cpu
+    return is_cpu(d)
 
 
-def building(keep=lambda p, d: True):
-    """Flat indices (strings) of the devices ``keep`` accepts that can build a program."""
-    return [prm.values[0] for prm in device_params(keep) if not prm.marks and prm.values[0] is not None]
+def building(keep=None):
+    """Flat indices (strings) of the devices ``keep(p, d)`` accepts that can build a program."""
+    try:
+        from brdfcl.device.platforms import usable
+        return [str(i) for i, p, d, c in usable(keep) if c.ok]
+    except Exception:                   # no pyopencl or no platform
+        return []

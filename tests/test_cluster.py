@@ -51,17 +51,3 @@ def test_worker_killed_mid_run(client, demo_db, tmp_path):
     assert sorted(r.name for r in rep.results) == sorted(NAMES)       # every result exactly once
     assert sorted(p.stem for p in (tmp_path / "o").glob("*.json")) == sorted(NAMES)
 
-
-def _platform_names():
-    from brdfcl.device.platforms import all_devices
-    return sorted({p.name for p, d in all_devices()})
-
-
-def test_workers_list_the_runtimes_brdfcl_loads(client):
-    """Intel's CPU runtime, loaded by brdfcl (no environment variable set by the user), is there in
-    every Dask worker as in the client."""
-    from brdfcl.device import runtimes
-    if runtimes.intel_cpu_runtime() is None:
-        pytest.skip("Intel's CPU runtime is not installed (pip install '.[intel-cpu]')")
-    seen = client.run(_platform_names)
-    assert seen and all("Intel(R) OpenCL" in names for names in seen.values()), seen

@@ -62,13 +62,18 @@ def test_the_check_is_cached_per_device(tmp_path, monkeypatch):
     p, d = all_devices()[0]
     calls = []
 
-    def child(selector):
+    def child(selector, key):
         calls.append(selector)
-        return buildcheck.Check(False, "error: unknown target CPU 'generic'", None)
+        return buildcheck.Check(False, "error: unknown target CPU 'generic'", None), True
     got = buildcheck.check(_Platform, d, "0:0", run=child)
     assert not got.ok and got.reason == "its LLVM 14 does not know this CPU (generic)" and calls == ["0:0"]
     monkeypatch.setattr(buildcheck, "_CHECKED", {})           # a second process: read from the file
     assert buildcheck.check(_Platform, d, "0:0", run=pytest.fail) == got
+    monkeypatch.setattr(buildcheck, "_CHECKED", {})           # a crash is not the compiler's answer:
+    monkeypatch.setenv(buildcheck.BREAK_ENV, "another key")   # not kept, checked again next time
+    crash = buildcheck.check(_Platform, d, "0:0", run=lambda s, k: (buildcheck.Check(False, "crashed"), False))
+    monkeypatch.setattr(buildcheck, "_CHECKED", {})
+    assert not crash.ok and buildcheck.check(_Platform, d, "0:0", run=lambda s, k: (buildcheck.Check(True), True)).ok
 
 
 def test_a_cpu_device_is_probed_from_the_width_of_the_cpu_not_its_report():
@@ -113,8 +118,10 @@ def test_intels_runtime_is_listed_in_every_process_without_environment_variables
 @needs_intel
 def test_a_users_own_icd_folder_is_left_as_it_is(tmp_path):
     code = "from brdfcl.device.platforms import all_devices; print([p.name for p, d in all_devices()])"
-    r = _run(["-c", code], {runtimes.VENDORS_ENV: str(tmp_path)})
-    assert "Intel(R) OpenCL" not in r.stdout, r.stdout
+    r = _run(["-c", code + "; from brdfcl.device.runtimes import not_loaded; print(not_loaded())"],
+             {runtimes.VENDORS_ENV: str(tmp_path)})
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert "Intel(R) OpenCL" not in r.stdout and f"{runtimes.VENDORS_ENV} is set" in r.stdout, r.stdout
 
 
 def _first_choice():
@@ -145,7 +152,10 @@ def test_a_platform_that_cannot_build_is_left_out_with_one_line(tmp_path):
     info = _run(["-m", "brdfcl.app.cli", "info"], env)
     assert info.returncode == 0, info.stderr
     assert "status: cannot build a program: error: injected build failure" in info.stdout
-    assert "; chosen" in next(ln for ln in info.stdout.splitlines() if "status: builds" in ln)
+    chosen = [ln.strip() for ln in info.stdout.splitlines() if ln.strip().startswith("status: ")]
+    index = next(i for i, (p, d) in enumerate(devs) if p.int_ptr == then[0].int_ptr and d.int_ptr == then[1].int_ptr)
+    assert chosen[index] == "status: builds programs; chosen", chosen
+    assert sum(ln.endswith("; chosen") for ln in chosen) == 1
     assert max(map(len, _lines(info))) <= LONGEST
 
 
@@ -156,27 +166,31 @@ def test_no_device_that_builds_is_one_line_with_what_to_install(tmp_path, demo_d
     assert r.returncode == 2
     err = [ln for ln in r.stderr.splitlines() if ln.strip()]
     assert len(err) == 1 and err[0].startswith("brdfcl: error: no OpenCL device builds here"), err
-    assert "intel-cpu" in err[0] and len(err[0]) <= LONGEST, err[0]
+    assert err[0].endswith(f"to get one: {runtimes.install_hint()}") and len(err[0]) <= LONGEST, err[0]
     info = _run(["-m", "brdfcl.app.cli", "info"], env)
     assert info.returncode == 1 and info.stdout.splitlines()[-1].startswith("no device: ")
     assert max(map(len, _lines(info))) <= LONGEST
 
 
-def test_a_program_that_fails_to_build_is_one_line_naming_model_device_and_log(monkeypatch):
+def test_a_program_that_fails_to_build_is_one_line_naming_model_device_and_log(monkeypatch, tmp_path):
+    """However long the compiler's error, the line keeps the model, the device and the log's path."""
     from brdfcl.device import engine
     from brdfcl.device.program import ProgramError
-    short = tempfile.mkdtemp(prefix="brdfcl-")                  # as long as ~/.cache/brdfcl
+    short = tempfile.mkdtemp(prefix="brdfcl-cache-")         # about as long as ~/.cache/brdfcl
     monkeypatch.setenv("BRDFCL_CACHE_DIR", short)
-    monkeypatch.setattr(engine, "render", lambda model, opt: "#error this kernel is broken\n" + "int x;\n" * 500)
+    broken = "#error this kernel is broken " + "because " * 40 + "\n"
+    monkeypatch.setattr(engine, "render", lambda model, opt: broken + "int x;\n" * 500)
     with pytest.raises(ProgramError) as e:
-        engine.Engine("diffuse+ggx", vector_width=1)
+        engine.Engine("diffuse+diffraction+ggx", vector_width=16)
     msg = str(e.value)
     assert "\n" not in msg and len(msg) <= LONGEST, msg
-    assert msg.startswith("diffuse+ggx") and "error: this kernel is broken" in msg
+    assert msg.startswith("diffuse+diffraction") and "error: this kernel" in msg
     assert pick_device()[1].name in msg
-    log = Path(msg.rsplit("(build log: ", 1)[1].rstrip(")"))
-    assert "this kernel is broken" in log.read_text()
-    shutil.rmtree(short)
+    try:
+        log = Path(msg.rsplit("(build log: ", 1)[1].rstrip(")")).expanduser()
+        assert "this kernel is broken because because" in log.read_text()
+    finally:
+        shutil.rmtree(short)
 
 
 @pytest.mark.skipif(not building(), reason="no device builds here")
@@ -184,3 +198,29 @@ def test_a_fit_error_on_the_command_line_is_short_without_debug(tmp_path, demo_d
     r = _run(["-m", "brdfcl.app.cli", "fit-all", str(demo_db), "--out", str(tmp_path), "--device", "no-such"])
     assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1
     assert max(map(len, _lines(r))) <= LONGEST
+
+
+@needs_intel
+def test_dask_workers_load_intels_runtime_themselves(tmp_path):
+    """A cluster started before any device is listed: its workers inherit no ICD folder and must
+    make Intel's runtime loadable themselves."""
+    pytest.importorskip("distributed")
+    env = {k: v for k, v in os.environ.items() if k not in (runtimes.VENDORS_ENV, runtimes.OURS_ENV)}
+    code = """
+import os
+from brdfcl.app.cluster import make_client
+
+def names():
+    from brdfcl.device.platforms import all_devices
+    return sorted({p.name for p, d in all_devices()}), os.environ.get("BRDFCL_ICD_VENDORS")
+
+if __name__ == "__main__":
+    assert "BRDFCL_ICD_VENDORS" not in os.environ
+    with make_client(workers=1) as client:
+        print(list(client.run(names).values()))
+"""
+    (tmp_path / "workers.py").write_text(code)
+    r = subprocess.run([sys.executable, str(tmp_path / "workers.py")], capture_output=True, text=True, env=env,
+                       timeout=300, cwd=tmp_path)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert "Intel(R) OpenCL" in r.stdout, r.stdout

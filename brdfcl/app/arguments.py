@@ -81,7 +81,7 @@ def add_fit_arguments(p: argparse.ArgumentParser) -> None:
              f"(degrees, {NO_CUTOFF_DEG:g} or more: none; default {cutoff})")
     opt("--double", dest="real", action="store_const", const="double",
         help=f"float64 kernels and data (default {real})")
-    opt("--device", help="OpenCL device index or name (default: PoCL CPU)")
+    opt("--device", help="OpenCL device index or name (default: the first CPU device that builds)")
     opt("--vector-width", type=int, choices=(1, 2, 4, 8, 16),
         help="cells per work-item on a CPU (default: the widest that passes the self-test; "
              "also BRDFCL_VECTOR_WIDTH)")

@@ -391,7 +391,7 @@ def add_parser(subparsers):
                         "the recipe: 100)")
     p.add_argument("--fp", type=float, default=FP_TARGET, help="false-positive target (default %(default)s)")
     p.add_argument("--seed", type=int, default=Plan().seed, help="seed of the cases (default %(default)s)")
-    p.add_argument("--device", default=None, help="OpenCL device of the fits (default: PoCL CPU)")
+    p.add_argument("--device", default=None, help="OpenCL device of the fits (default: first CPU that builds)")
     p.set_defaults(func=run)
     return p
 

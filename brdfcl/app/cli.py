@@ -16,49 +16,44 @@ from brdfcl.app.arguments import UsageError, add_database_arguments, default_of,
 
 # fit_options and UsageError are this module's too (tests and scripts import them from here)
 __all__ = ["UsageError", "build_parser", "fit_options", "main"]
-MESSAGE_CHARS = 300                 # an error line longer than this is cut (its start says what)
+MESSAGE_CHARS = 400                 # a longer error line is cut in its middle (--debug shows all)
 
 
 def cmd_info(args):
     import pyopencl as cl
 
     from brdfcl.device import buildcheck, cpu, runtimes
-    from brdfcl.device.platforms import DeviceError, all_devices, check, describe_device, has_fp64, pick_device
+    from brdfcl.device.platforms import DeviceError, all_devices, check, describe_device, has_fp64, pick_device, status
     from brdfcl.device.width import forced_width
     forced_width(args.vector_width)             # a bad BRDFCL_VECTOR_WIDTH: one line, exit 2
     print(f"brdfcl {__version__}, pyopencl {cl.VERSION_TEXT}, CPU: {cpu.name()}")
     devs = all_devices()
-    loaded = {str(rt.library): rt for rt in runtimes.prepare()}
     quiet = logging.getLogger("brdfcl")
     level, _ = quiet.level, quiet.setLevel(logging.ERROR)   # what pick_device notes is listed below
     try:
-        chosen = pick_device(args.device)
+        chosen, why_none = pick_device(args.device), ""
     except DeviceError as e:
         chosen, why_none = None, str(e)
     finally:
         quiet.setLevel(level)
     for i, (p, d) in enumerate(devs):
-        for line in describe_device(i, p, d):
+        for line in describe_device(i, p, d) + [f"     {status(i, devs, chosen)}"]:
             print(line)
-        c = check(i, devs)
-        is_chosen = chosen is not None and (p.int_ptr, d.int_ptr) == (chosen[0].int_ptr, chosen[1].int_ptr)
-        status = "builds programs" if c.ok else f"cannot build a program: {c.reason}"
-        print(f"     status: {status}{'; chosen' if is_chosen else ''}"
-              + (f" (build log: {c.log})" if c.log and not c.ok else ""))
-        if c.ok:
+        if check(i, devs).ok:
             for real in ("float", "double") if has_fp64(d) else ("float",):
                 print(f"     {real}: {_program_check(i, real, args.vector_width)}", flush=True)
-    for rt in loaded.values():
+    for rt in runtimes.prepare():
         print(f"loaded by brdfcl: {rt.name} {rt.version} from {rt.library.parent} (pip's intel-opencl-rt)")
+    if runtimes.not_loaded():
+        print(f"not loaded: {runtimes.not_loaded()}")
     if chosen is None:
         print(f"no device: {why_none}")
         return 1
     p, d = chosen
-    left = [f"{buildcheck.label(q)} ({c.reason})" for j, (q, _) in enumerate(devs) for c in [check(j, devs)]
-            if not c.ok]
     index = next(i for i, (q, e) in enumerate(devs) if (q.int_ptr, e.int_ptr) == (p.int_ptr, d.int_ptr))
+    left = [buildcheck.label(q) for j, (q, _) in enumerate(devs) if not check(j, devs).ok]
     print(f"default device: [{index}] {d.name} on {buildcheck.label(p)}"
-          + (f"; left out: {'; '.join(left)}" if left else ""))
+          + (f"; cannot build: {', '.join(left)}" if left else ""))
     return 0
 
 
@@ -230,7 +225,7 @@ def build_parser():
     sub.add_parser = lambda *a, **kw: add(*a, parents=[common], **kw)
 
     p = sub.add_parser("info", help="list OpenCL devices, the vector width used on each and its self-test")
-    p.add_argument("--device", default=None, help="device index or name (default: PoCL CPU)")
+    p.add_argument("--device", default=None, help="device index or name (default: the first CPU that builds)")
     p.add_argument("--vector-width", type=int, default=None, help="check this width instead of choosing")
     p.set_defaults(func=cmd_info)
 
@@ -289,7 +284,7 @@ def build_parser():
     p.add_argument("fit", help="a NAME.json written by fit-all")
     p.add_argument("--brdf-explorer", metavar="PATH", help="write a BRDF Explorer .brdf file (analytic GLSL)")
     p.add_argument("--merl", metavar="PATH", help="write the fitted model tabulated as a MERL .binary")
-    p.add_argument("--device", default=None, help="OpenCL device for --merl (default: PoCL CPU)")
+    p.add_argument("--device", default=None, help="OpenCL device for --merl (default: the first CPU that builds)")
     p.set_defaults(func=cmd_export)
 
     p = sub.add_parser("terms", help="every D, G, F and PSD term with its parameters and source (Markdown)")
@@ -323,8 +318,8 @@ def main(argv=None):
         known = (UsageError, MerlError, ModelError, DeviceError, OSError, ValueError, WorkerError)
         kind = "" if isinstance(e, known) else f"{type(e).__name__}: "
         text = " ".join(f"{kind}{e}".split())
-        if len(text) > MESSAGE_CHARS:
-            text = text[:MESSAGE_CHARS - 40].rstrip() + " [...] (--debug shows all)"
+        if len(text) > MESSAGE_CHARS:       # keep both ends: what failed, and where more is said
+            text = f"{text[:MESSAGE_CHARS // 2 - 12].rstrip()} [...] {text[-(MESSAGE_CHARS // 2 - 12):].lstrip()}"
         print(f"brdfcl: error: {text}", file=sys.stderr)
         return 2
 

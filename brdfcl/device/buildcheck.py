@@ -25,7 +25,7 @@ import warnings
 from dataclasses import dataclass
 
 from brdfcl.device import cpu, runtimes
-from brdfcl.device.cache import cache_dir, read_json, update_json
+from brdfcl.device.cache import cache_dir, locked, read_json, update_json
 
 KERNEL = "__kernel void brdfcl_check(__global float *x) { x[get_global_id(0)] *= 2.0f; }\n"
 BREAK_ENV = "BRDFCL_BREAK_PLATFORM"
@@ -65,15 +65,18 @@ def _broken(platform) -> bool:
 
 
 def key(platform, device) -> str:
+    """What the check's answer depends on: platform, device, driver, CPU, PoCL's settings."""
     import pyopencl as cl
+    pocl = [f"{k}={v}" for k, v in sorted(os.environ.items()) if k.startswith("POCL_") and k != "POCL_CACHE_DIR"]
     parts = [str(_VERSION), platform.name, platform.version, device.name, device.driver_version,
-             cpu.flags(), cl.VERSION_TEXT, os.environ.get(BREAK_ENV, "")]
+             cpu.flags(), cl.VERSION_TEXT, os.environ.get(BREAK_ENV, ""), *pocl]
     return hashlib.sha1("\n".join(parts).encode()).hexdigest()[:20]
 
 
 def check(platform, device, selector: str, run=None) -> Check:
     """Whether ``device`` builds a one-line kernel; ``selector`` (``P:D``) names it in a child
-    process.  Cached in this process and on disk; ``run`` replaces the child (tests)."""
+    process.  Cached in this process and, where the compiler itself answered, on disk (a crash
+    or a timeout is checked again by the next process); ``run`` replaces the child (tests)."""
     k = key(platform, device)
     if k in _CHECKED:
         return _CHECKED[k]
@@ -82,58 +85,70 @@ def check(platform, device, selector: str, run=None) -> Check:
     if isinstance(hit, dict) and isinstance(hit.get("ok"), bool) and isinstance(hit.get("reason"), str):
         res = Check(hit["ok"], hit["reason"], hit.get("log"))
     else:
-        res = (run or _run_child)(selector)
-        res = Check(res.ok, explain(platform, res.reason) if not res.ok else "", res.log)
-        try:
-            update_json(path, k, {"ok": res.ok, "reason": res.reason, "log": res.log, "device": device.name,
-                                  "platform": platform.version})
-        except OSError:
-            pass
+        got, final = (run or _run_child)(selector, k)
+        res = Check(got.ok, explain(platform, got.reason) if not got.ok else "", got.log)
+        if final:
+            try:
+                with locked(path):
+                    update_json(path, k, {"ok": res.ok, "reason": res.reason, "log": res.log,
+                                          "device": device.name, "platform": platform.version})
+            except OSError:
+                pass
     _CHECKED[k] = res
     return res
 
 
-def _run_child(selector: str) -> Check:
-    cmd = [sys.executable, "-m", "brdfcl.device.buildcheck", "--device", selector]
+def _run_child(selector: str, expect: str) -> tuple[Check, bool]:
+    """(the child's answer, whether it is the compiler's own and may be cached)."""
+    cmd = [sys.executable, "-m", "brdfcl.device.buildcheck", "--device", selector, "--key", expect]
     try:
         r = subprocess.run(cmd, capture_output=True, text=True, timeout=TIMEOUT_S)
     except subprocess.TimeoutExpired:
-        return Check(False, f"no answer in {TIMEOUT_S} s to building a one-line kernel")
+        return Check(False, f"no answer in {TIMEOUT_S} s to building a one-line kernel"), False
     for line in reversed(r.stdout.strip().splitlines()):
         try:
             got = json.loads(line)
         except ValueError:
             continue
         if isinstance(got, dict) and "ok" in got:
-            return Check(bool(got["ok"]), str(got.get("reason", "")), got.get("log"))
+            return Check(bool(got["ok"]), str(got.get("reason", "")), got.get("log")), bool(got.get("final"))
     if r.returncode < 0:
-        return Check(False, f"crashed building a one-line kernel (signal {-r.returncode})")
+        return Check(False, f"crashed building a one-line kernel (signal {-r.returncode})"), False
     tail = (r.stderr.strip().splitlines() or ["no output"])[-1]
-    return Check(False, f"exit status {r.returncode} building a one-line kernel: {tail[:100]}")
+    return Check(False, f"exit status {r.returncode} building a one-line kernel: {tail[:80]}"), False
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m brdfcl.device.buildcheck")
     ap.add_argument("--device", required=True, help="P:D, the platform and device indices")
+    ap.add_argument("--key", default="", help="the device's key in the caller (refuse another device)")
     a = ap.parse_args(argv)
     runtimes.prepare()
     import pyopencl as cl
 
     from brdfcl.device import buildlog
+    from brdfcl.device.program import repair_pocl_cache
     pi, di = (int(s) for s in a.device.split(":"))
     platform = cl.get_platforms()[pi]
     device = platform.get_devices()[di]
+    if a.key and key(platform, device) != a.key:
+        out: dict = {"ok": False, "reason": f"device {a.device} is another device in a new process", "final": False}
+        print(json.dumps(out), flush=True)
+        return 0
+    repair_pocl_cache(platform)
     source = ("#error injected build failure\n" if _broken(platform) else "") + KERNEL
-    ctx = cl.Context([device])
-    program = cl.Program(ctx, source)
     try:
+        ctx = cl.Context([device])
+        program = cl.Program(ctx, source)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", cl.CompilerWarning)
             program.build(devices=[device])
-        out: dict = {"ok": True}
+        out = {"ok": True, "final": True}
     except cl.Error as e:
         f = buildlog.failure(e, f"one-line kernel on {device.name} ({platform.version})")
-        out = {"ok": False, "reason": f.cause, "log": str(f.log) if f.log else None}
+        # a build that failed is the compiler's answer; a context that could not be made may not be
+        final = "BUILD_PROGRAM_FAILURE" in buildlog.error_text(e)
+        out = {"ok": False, "reason": f.cause, "log": str(f.log) if f.log else None, "final": final}
     print(json.dumps(out), flush=True)
     return 0
 

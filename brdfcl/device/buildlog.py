@@ -14,6 +14,7 @@ from pathlib import Path
 from brdfcl.device.cache import cache_dir
 
 CAUSE_CHARS = 100
+LINE_CHARS = 200                 # the longest error line a user sees without --debug
 _ERROR = re.compile(r"\b(?:fatal )?error\b[:\s]", re.IGNORECASE)
 _WHERE = re.compile(r"^((?:fatal )?error:\s*)\S+:\d+:\d+:\s*(?:(?:fatal )?error:\s*)?", re.IGNORECASE)
 
@@ -50,13 +51,27 @@ def keep(text: str, what: str) -> Path | None:
     return path
 
 
+def line(head: str, cause: str, log: Path | str | None = None, tail: str = "") -> str:
+    """``head + cause + tail`` and the log's path, at most LINE_CHARS long: the cause is what is
+    cut (never the path to the rest, nor what names the model and device)."""
+    where = f" (build log: {_short(log)})" if log else ""
+    room = max(24, LINE_CHARS - len(head) - len(tail) - len(where))
+    if len(cause) > room:
+        cause = cause[:room - 3].rstrip() + "..."
+    return f"{head}{cause}{tail}{where}"
+
+
+def _short(path) -> str:
+    """A path with the home folder written ``~`` (a shell expands it back)."""
+    home = str(Path.home())
+    text = str(path)
+    return "~" + text[len(home):] if home != "/" and text.startswith(home + "/") else text
+
+
 @dataclass(frozen=True)
 class Failure:
     cause: str                   # one short line: the compiler's first error
     log: Path | None             # the whole text, or None where it could not be written
-
-    def where(self) -> str:
-        return f" (build log: {self.log})" if self.log else ""
 
 
 def failure(e, what: str = "") -> Failure:

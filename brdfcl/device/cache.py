@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+from contextlib import contextmanager
 from pathlib import Path
 
 
@@ -38,3 +39,17 @@ def write_json(path: Path, d: dict) -> None:
     tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
     tmp.write_text(json.dumps(d, indent=1, sort_keys=True))
     os.replace(tmp, path)
+
+
+@contextmanager
+def locked(path: Path):
+    """Serialise a read-decide-write of one cache file between processes (Dask workers start
+    together); a file system without locks gives no lock."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path.with_suffix(".lock"), "w") as f:
+        try:
+            import fcntl
+            fcntl.flock(f, fcntl.LOCK_EX)
+        except (ImportError, OSError):
+            pass
+        yield

@@ -16,7 +16,7 @@ import numpy as np
 import pyopencl as cl
 
 from brdfcl.data.geometry import DEFAULT_CUTOFF_DEG, table_geometry
-from brdfcl.device import selftest, width
+from brdfcl.device import buildlog, selftest, width
 from brdfcl.device.cellsets import CellSet, build_cellset, build_sample_cellset, extract, select_cells
 from brdfcl.device.platforms import has_fp64, pick_device
 from brdfcl.device.program import (
@@ -115,11 +115,9 @@ class Engine:
                     return _PROGRAMS[key]
                 failures.append(ProgramError(f"self-test {result.detail}"))
         last = failures[-1]
-        hint = (f"; try a narrower --vector-width (or {width.ENV}) than {self.opt.vw}"
-                if self.opt.vw > 1 and last.log is None else "")
-        where = f" (build log: {last.log})" if last.log else ""
-        raise ProgramError(f"{self.model.spec} ({self.opt.real} x{self.opt.vw}) fails on {self.device.name}: "
-                           f"{last.cause}{hint}{where}", last.cause, last.log)
+        hint = f"; try a narrower --vector-width than {self.opt.vw}" if self.opt.vw > 1 and last.log is None else ""
+        head = f"{self.model.spec} ({self.opt.real} x{self.opt.vw}) fails on {self.device.name}: "
+        raise ProgramError(buildlog.line(head, last.cause, last.log, hint), last.cause, last.log)
 
     # --- data ------------------------------------------------------------------------------------
     def cellset(self, tables, index=None, cutoff_deg=DEFAULT_CUTOFF_DEG, **kw) -> CellSet:

@@ -14,11 +14,10 @@ import logging
 import os
 import re
 
-from brdfcl.device import buildcheck, runtimes
+from brdfcl.device import buildcheck, buildlog, runtimes
+from brdfcl.device.errors import DeviceError
 
-
-class DeviceError(RuntimeError):
-    pass
+__all__ = ["DeviceError", "all_devices", "check", "describe", "has_fp64", "pick_device", "usable"]
 
 
 def _cl():
@@ -53,11 +52,12 @@ def describe_device(i, p, d):
             f"{d.preferred_vector_width_double}"]
 
 
-def describe():
-    """Lines on every device, as `brdfcl info` prints them: what it reports and whether it builds."""
+def describe(chosen=None):
+    """Lines on every device, as `brdfcl info` prints them: what it reports and whether it builds
+    (``chosen``: the (platform, device) to mark as chosen)."""
     devs = all_devices()
     return [line for i, (p, d) in enumerate(devs)
-            for line in describe_device(i, p, d) + [f"     status: {check(i, devs)}"]]
+            for line in describe_device(i, p, d) + [f"     {status(i, devs, chosen)}"]]
 
 
 def pocl_version(platform) -> tuple:
@@ -89,15 +89,39 @@ def check(index: int, devs=None) -> buildcheck.Check:
     return buildcheck.check(p, d, selector_of(p, d))
 
 
+def is_pocl(platform) -> bool:
+    return "portable computing" in platform.name.lower()
+
+
+def is_cpu(device) -> bool:
+    return _kind(device) == "CPU"
+
+
+def usable(keep=None) -> list:
+    """[(flat index, platform, device, Check)] of every device (those ``keep(p, d)`` accepts), with
+    whether it builds: for `brdfcl info`, tests and benchmarks that run on each runtime."""
+    devs = all_devices()
+    return [(i, p, d, check(i, devs)) for i, (p, d) in enumerate(devs) if keep is None or keep(p, d)]
+
+
 def preference(devs) -> list:
     """Indices of ``devs`` in the order of the default choice (see the module docstring)."""
     def rank(i):
         p, d = devs[i]
-        pocl = "portable computing" in p.name.lower()
-        intel_cpu = "intel" in p.name.lower() and _kind(d) == "CPU"
+        intel_cpu = "intel" in p.name.lower() and is_cpu(d)
         major, minor, release = pocl_version(p)
-        return (not has_fp64(d), 0 if pocl else 1 if intel_cpu else 2, -major, -minor, not release, i)
+        return (not has_fp64(d), 0 if is_pocl(p) else 1 if intel_cpu else 2, -major, -minor, not release, i)
     return sorted(range(len(devs)), key=rank)
+
+
+def status(index: int, devs, chosen=None) -> str:
+    """One line on whether a device builds programs (and is the one chosen), for `brdfcl info`."""
+    c = check(index, devs)
+    p, d = devs[index]
+    mark = "; chosen" if chosen is not None and (p.int_ptr, d.int_ptr) == (chosen[0].int_ptr, chosen[1].int_ptr) else ""
+    if c.ok:
+        return f"status: builds programs{mark}"
+    return buildlog.line("status: cannot build a program: ", c.reason, c.log, mark)
 
 
 _NOTED: set = set()
@@ -115,7 +139,7 @@ def pick_device(selector: str | None = None):
     selector = selector if selector is not None else os.environ.get("BRDFCL_DEVICE")
     devs = all_devices()
     if not devs:
-        raise DeviceError(f"no OpenCL device found; install {runtimes.INSTALL_HINT}")
+        raise DeviceError(f"no OpenCL device found; to get one: {runtimes.install_hint()}")
     if selector in (None, "", "default"):
         left_out: list[str] = []
         for i in preference(devs):
@@ -123,20 +147,25 @@ def pick_device(selector: str | None = None):
             if c.ok:
                 p, d = devs[i]
                 if left_out:
-                    _note(f"brdfcl: {'; '.join(left_out)}; using {buildcheck.label(p)} ({d.name})")
+                    _note(buildlog.line("brdfcl: ", "; ".join(left_out), None,
+                                        f"; using {buildcheck.label(p)} ({d.name})"))
                 return p, d
             left_out.append(f"{buildcheck.label(devs[i][0])}: {c.reason}")
         more = f"; +{len(left_out) - 1} in brdfcl info" if len(left_out) > 1 else ""
-        raise DeviceError(f"no OpenCL device builds here ({left_out[0]}{more}); install {runtimes.INSTALL_HINT}")
+        raise DeviceError(buildlog.line("no OpenCL device builds here (", left_out[0],
+                                        None, f"{more}); to get one: {runtimes.install_hint()}"))
     i = _select(selector, devs)
     c = check(i, devs)
     if not c.ok:
-        raise DeviceError(f"device '{selector}' ({buildcheck.label(devs[i][0])}) cannot build a program: {c.reason}")
+        raise DeviceError(buildlog.line(f"device '{selector}' ({buildcheck.label(devs[i][0])}) cannot build a "
+                                        "program: ", c.reason, c.log))
     return devs[i]
 
 
 def _select(selector: str, devs) -> int:
-    """The index into ``devs`` that a selector names."""
+    """The index into ``devs`` that a selector names: an index, else the devices whose platform's
+    name or version holds it (``intel`` is Intel's runtime, not PoCL on an Intel CPU), else those
+    whose device name or kind does; of several, the first that builds."""
     if selector.replace(":", "").isdigit():
         if ":" in selector:
             pi, di = (int(s) for s in selector.split(":"))
@@ -147,10 +176,13 @@ def _select(selector: str, devs) -> int:
             return int(selector)
         raise DeviceError(f"no OpenCL device '{selector}'; {_choices(devs)}")
     s = selector.lower()
-    for i, (p, d) in enumerate(devs):
-        if s in p.name.lower() or s in p.version.lower() or s in d.name.lower() or s == _kind(d).lower():
-            return i
-    raise DeviceError(f"no OpenCL device matches '{selector}'; {_choices(devs)}")
+    hits = ([i for i, (p, d) in enumerate(devs) if s in p.name.lower() or s in p.version.lower()]
+            or [i for i, (p, d) in enumerate(devs) if s in d.name.lower() or s == _kind(d).lower()])
+    if not hits:
+        raise DeviceError(f"no OpenCL device matches '{selector}'; {_choices(devs)}")
+    order = preference(devs)
+    hits.sort(key=order.index)
+    return next((i for i in hits if check(i, devs).ok), hits[0])
 
 
 def _choices(devs):

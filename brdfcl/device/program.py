@@ -28,23 +28,12 @@ import pyopencl as cl
 
 from brdfcl.device import buildlog
 from brdfcl.device.cache import cache_dir, read_json, update_json, write_json
-from brdfcl.device.platforms import DeviceError
+from brdfcl.device.errors import ProgramError
 
 KERNELS = ("target", "loss", "grad", "jtj", "errors", "predict")
 BUILD_OPTIONS = ["-cl-mad-enable"]
 ABI_WARNING = "changes the ABI"     # LLVM, when vector arguments are wider than the target
 _REPAIRED: set = set()
-
-
-class ProgramError(DeviceError):
-    """A program that cannot be built or used on a device; the message is one line.  ``cause``
-    is the compiler's first error (or the failing check) alone, ``log`` the file with the whole
-    build log (None when there is none)."""
-
-    def __init__(self, message: str, cause: str = "", log: Path | None = None):
-        super().__init__(message)
-        self.cause = cause or message
-        self.log = log
 
 
 def pocl_cache_dir(platform) -> Path | None:
@@ -349,7 +338,7 @@ def build(ctx, device, source: str, attempt: int = 0):
         kernels = {k: cl.Kernel(program, k) for k in KERNELS}
     except cl.Error as e:
         f = buildlog.failure(e, f"build on {device.name}, options {' '.join(options)}")
-        failed = ProgramError(f"cannot build on {device.name}: {f.cause}{f.where()}", f.cause, f.log)
+        failed = ProgramError(buildlog.line(f"cannot build on {device.name}: ", f.cause, f.log), f.cause, f.log)
     else:
         return program, kernels
     del program

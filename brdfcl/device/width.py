@@ -20,15 +20,14 @@ import json
 import os
 import subprocess
 import sys
-from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
 import pyopencl as cl
 
 from brdfcl._version import __version__
-from brdfcl.device import cpu
-from brdfcl.device.cache import cache_dir, read_json, update_json
+from brdfcl.device import buildlog, cpu
+from brdfcl.device.cache import cache_dir, locked, read_json, update_json
 from brdfcl.device.platforms import selector_of
 from brdfcl.device.program import ABI_WARNING, ProgramError
 from brdfcl.kernels.codegen import kernel_sources_hash
@@ -94,24 +93,6 @@ def device_key(platform, device, real) -> str:
     return hashlib.sha1("\n".join(parts).encode()).hexdigest()[:20]
 
 
-@contextmanager
-def _locked(path: Path):
-    """Serialise probing between processes (Dask workers start together)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with open(path.with_suffix(".lock"), "w") as f:
-        try:
-            import fcntl
-            fcntl.flock(f, fcntl.LOCK_EX)
-        except (ImportError, OSError):
-            pass
-        yield
-
-
-def device_selector(platform, device) -> str:
-    """``P:D`` indices that name this device in another process."""
-    return selector_of(platform, device)
-
-
 def probe(selector: str, real: str, width: int) -> dict:
     """Build and self-test the default model at ``width`` in a child process: {ok, detail, ...}."""
     return run_probe([sys.executable, "-m", "brdfcl.device.probe", "--device", selector, "--real", real,
@@ -151,7 +132,7 @@ def choose(platform, device, real, explicit=None, log=None, probe_fn=None) -> Wi
     key = device_key(platform, device, real)
     hit = _entry(read_json(path), key)
     if hit is None:
-        with _locked(path):
+        with locked(path):
             hit = _entry(read_json(path), key)        # another process may have probed meanwhile
             if hit is None:
                 hit = _probe_all(platform, device, real, widths, log, probe_fn or probe)
@@ -172,7 +153,7 @@ def _entry(table: dict, key: str) -> dict | None:
 
 
 def _probe_all(platform, device, real, widths, log, probe_fn) -> dict:
-    selector = device_selector(platform, device)
+    selector = selector_of(platform, device)
     tried: dict[str, list[int]] = {}            # each outcome with the widths that had it
     logs = []
     for w in widths:
@@ -186,15 +167,15 @@ def _probe_all(platform, device, real, widths, log, probe_fn) -> dict:
                     "device": device.name, "platform": platform.version, "real": real}
         tried.setdefault(str(res.get("detail", "?")), []).append(w)
         logs += [res["log"]] if res.get("log") else []
-    where = f" (build log: {logs[0]})" if logs else ""
-    raise ProgramError(f"no vector width works on {device.name} ({real}): {_outcomes(tried)}{where}",
-                       _outcomes(tried), Path(logs[0]) if logs else None)
+    log_path = Path(logs[0]) if logs else None
+    raise ProgramError(buildlog.line(f"no vector width works on {device.name} ({real}): ", _outcomes(tried),
+                                     log_path), _outcomes(tried), log_path)
 
 
 def _outcomes(tried: dict) -> str:
     """``16, 8 failed: crashed (signal 11); 4 failed: ...``, each outcome cut to one short clause."""
     def short(detail):
-        return detail if len(detail) <= 90 else detail[:87] + "..."
+        return detail if len(detail) <= 60 else detail[:57] + "..."
     return "; ".join(f"{', '.join(map(str, ws))} failed: {short(d)}" for d, ws in tried.items())
 
 
