@@ -33,6 +33,8 @@ def cmd_info(args):
     try:
         chosen, why_none = pick_device(args.device), ""
     except DeviceError as e:
+        if args.device:                         # a device asked for by name: a usage error
+            raise
         chosen, why_none = None, str(e)
     finally:
         quiet.setLevel(level)

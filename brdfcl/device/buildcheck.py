@@ -22,10 +22,10 @@ import re
 import subprocess
 import sys
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
+from brdfcl._cache import cache_dir, locked, read_json, update_json
 from brdfcl.device import cpu, runtimes
-from brdfcl.device.cache import cache_dir, locked, read_json, update_json
 
 KERNEL = "__kernel void brdfcl_check(__global float *x) { x[get_global_id(0)] *= 2.0f; }\n"
 BREAK_ENV = "BRDFCL_BREAK_PLATFORM"
@@ -39,6 +39,7 @@ class Check:
     ok: bool
     reason: str = ""             # why not, one short line ("" when it builds)
     log: str | None = None       # the file with the whole build log
+    fresh: bool = field(default=False, compare=False)     # decided in this process, not read back
 
     def __str__(self):
         return "builds" if self.ok else f"cannot build: {self.reason}"
@@ -86,7 +87,7 @@ def check(platform, device, selector: str, run=None) -> Check:
         res = Check(hit["ok"], hit["reason"], hit.get("log"))
     else:
         got, final = (run or _run_child)(selector, k)
-        res = Check(got.ok, explain(platform, got.reason) if not got.ok else "", got.log)
+        res = Check(got.ok, explain(platform, got.reason) if not got.ok else "", got.log, fresh=True)
         if final:
             try:
                 with locked(path):

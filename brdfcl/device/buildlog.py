@@ -11,7 +11,7 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
-from brdfcl.device.cache import cache_dir
+from brdfcl._cache import cache_dir
 
 CAUSE_CHARS = 100
 LINE_CHARS = 200                 # the longest error line a user sees without --debug

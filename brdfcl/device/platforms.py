@@ -2,11 +2,12 @@
 
 Default: the first device with float64 that can build a program (brdfcl.device.buildcheck), in
 this order: the PoCL platforms, newest first (Debian's 3.1 build before the pip wheel's 3.0),
-then Intel's CPU runtime, then any other.  A platform that cannot build is left out with one
-line saying why.  ``BRDFCL_DEVICE`` or ``--device`` pick another: an index ``P:D`` or ``D``
-(into the flat list of ``brdfcl info``) or a substring of the platform's name or version or of
-the device's name (``nvidia``, ``pocl 3.0``, ``intel``, ``cpu``).  The runtimes pip installed
-are made loadable before the first listing (brdfcl.device.runtimes).
+then Intel's CPU runtime, then any other.  A platform that cannot build is left out, with one
+line saying why in the run that first finds it out (`brdfcl info` always lists it).
+``BRDFCL_DEVICE`` or ``--device`` pick another: an index ``P:D`` or ``D`` (into the flat list of
+``brdfcl info``) or a substring of the platform's name or version (``intel``, ``pocl 3.0``), else
+of the device's name or kind (``nvidia``, ``cpu``); of several, the first that builds.  The
+runtimes pip installed are made loadable before the first listing (brdfcl.device.runtimes).
 """
 from __future__ import annotations
 
@@ -142,15 +143,17 @@ def pick_device(selector: str | None = None):
         raise DeviceError(f"no OpenCL device found; to get one: {runtimes.install_hint()}")
     if selector in (None, "", "default"):
         left_out: list[str] = []
+        told = False                    # said once per machine: when the check is made
         for i in preference(devs):
             c = check(i, devs)
             if c.ok:
                 p, d = devs[i]
-                if left_out:
+                if left_out and told:
                     _note(buildlog.line("brdfcl: ", "; ".join(left_out), None,
                                         f"; using {buildcheck.label(p)} ({d.name})"))
                 return p, d
             left_out.append(f"{buildcheck.label(devs[i][0])}: {c.reason}")
+            told |= c.fresh
         more = f"; +{len(left_out) - 1} in brdfcl info" if len(left_out) > 1 else ""
         raise DeviceError(buildlog.line("no OpenCL device builds here (", left_out[0],
                                         None, f"{more}); to get one: {runtimes.install_hint()}"))

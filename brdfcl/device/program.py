@@ -26,8 +26,8 @@ from pathlib import Path
 
 import pyopencl as cl
 
+from brdfcl._cache import cache_dir, read_json, update_json, write_json
 from brdfcl.device import buildlog
-from brdfcl.device.cache import cache_dir, read_json, update_json, write_json
 from brdfcl.device.errors import ProgramError
 
 KERNELS = ("target", "loss", "grad", "jtj", "errors", "predict")

@@ -174,7 +174,7 @@ def prepare(base: Path | None = None) -> list:
         if _names(icds, rt.library):
             return added                 # the system's ICDs already name it
         if base is None:
-            from brdfcl.device.cache import cache_dir
+            from brdfcl._cache import cache_dir
             base = cache_dir()
         try:
             folder = vendors_folder([rt], base, icds)

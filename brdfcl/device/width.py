@@ -25,9 +25,9 @@ from pathlib import Path
 
 import pyopencl as cl
 
+from brdfcl._cache import cache_dir, locked, read_json, update_json
 from brdfcl._version import __version__
 from brdfcl.device import buildlog, cpu
-from brdfcl.device.cache import cache_dir, locked, read_json, update_json
 from brdfcl.device.platforms import selector_of
 from brdfcl.device.program import ABI_WARNING, ProgramError
 from brdfcl.kernels.codegen import kernel_sources_hash

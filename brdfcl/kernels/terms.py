@@ -13,11 +13,15 @@ export.
 """
 from __future__ import annotations
 
+import hashlib
 from functools import cache
+from pathlib import Path
 
 import sympy as sp
 from sympy.printing.c import C99CodePrinter
 
+from brdfcl._cache import generated
+from brdfcl.model.terms.keys import formula_key
 from brdfcl.model.terms.symbols import CELL, EXP_LIMIT, f
 
 _VECTOR = frozenset((f, *CELL))
@@ -138,7 +142,16 @@ def _numbers(e):
 
 @cache
 def c_source(term) -> str:
-    """The term's OpenCL function (value returned, derivatives through pointers)."""
+    """The term's OpenCL function (value returned, derivatives through pointers), generated once
+    per machine (brdfcl._cache.generated, keyed by the term's formula_key and this printer)."""
+    return generated("c", _source_key(term), lambda: _print_c(term))
+
+
+def _source_key(term) -> str:
+    return hashlib.sha1((formula_key(term) + Path(__file__).read_text()).encode()).hexdigest()[:24]
+
+
+def _print_c(term) -> str:
     value, derivs = term.expressions()
     names = list(derivs)
     temps, (v, *ds) = sp.cse([_reciprocals(_numbers(e)) for e in (value, *derivs.values())],

@@ -7,19 +7,39 @@ they come in.  This is the ground truth the OpenCL kernels are tested against.
 """
 from __future__ import annotations
 
+import importlib
+import inspect
+import json
 from functools import cache
 
 import numpy as np
+import scipy.special
 import sympy as sp
 
 from brdfcl.model.terms.symbols import CELL, EXP_LIMIT, f
 
-_MODULES = [{"exp_clamped": lambda x: np.exp(np.minimum(x, EXP_LIMIT))}, "scipy", "numpy"]
+_CUSTOM = {"exp_clamped": lambda x: np.exp(np.minimum(x, EXP_LIMIT))}
+_MODULES = [_CUSTOM, "scipy", "numpy"]
 
 
 @cache
 def compiled(term):
-    """(argument names, numpy function returning (value, *derivatives)) of one term."""
+    """(argument names, numpy function returning (value, *derivatives)) of one term.  The
+    function's Python source is generated once per machine (brdfcl._cache.generated, keyed by the
+    term's formula_key), so a process that finds it pays neither SymPy's derivatives nor lambdify."""
+    from brdfcl._cache import generated
+    from brdfcl.model.terms.keys import formula_key
+    doc = json.loads(generated("reference", formula_key(term), lambda: _generate(term)))
+    namespace = {}
+    for name, home in doc["globals"].items():
+        namespace[name] = _CUSTOM[name] if home == "brdfcl" else getattr(importlib.import_module(home), name)
+    exec(compile(doc["source"], f"<brdfcl reference {term.kind} {term.name}>", "exec"), namespace)
+    return tuple(doc["args"]), namespace[doc["function"]]
+
+
+def _generate(term) -> str:
+    """The lambdified function of a term as JSON: its source, argument names and where each
+    global it reads comes from (brdfcl's own functions, scipy.special or numpy)."""
     value, derivs = term.expressions()
     exprs = [value, *derivs.values()]
     free = set().union(*(e.free_symbols for e in exprs))
@@ -27,7 +47,20 @@ def compiled(term):
     names = [*term.inputs, *term.const_names]
     syms = [term.symbols()[n] if n in term.inputs else sp.Symbol(n, real=True) for n in names]
     fn = sp.lambdify([*args, *syms], exprs, modules=_MODULES, cse=True)
-    return tuple(s.name for s in args), fn
+    where = {}
+    for name in fn.__code__.co_names:
+        obj = fn.__globals__.get(name)
+        if name in _CUSTOM and obj is _CUSTOM[name]:
+            where[name] = "brdfcl"
+        elif getattr(scipy.special, name, None) is obj:
+            where[name] = "scipy.special"
+        elif getattr(np, name, None) is obj:
+            where[name] = "numpy"
+        else:
+            raise RuntimeError(f"{term.kind} {term.name}: the reference reads '{name}', which is not numpy's, "
+                               f"scipy.special's or brdfcl's")
+    return json.dumps({"args": [s.name for s in args], "source": inspect.getsource(fn), "function": fn.__name__,
+                       "globals": where})
 
 
 def evaluate(term, arg, **inputs):

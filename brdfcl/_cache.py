@@ -1,7 +1,8 @@
 """brdfcl's own cache folder and the small JSON files it keeps there (vector widths, program
-keys, kernel-cache fingerprints, platform checks), each replaced atomically."""
+keys, kernel-cache fingerprints, platform checks, generated code), each replaced atomically."""
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 from contextlib import contextmanager
@@ -53,3 +54,24 @@ def locked(path: Path):
         except (ImportError, OSError):
             pass
         yield
+
+
+def generated(kind: str, key: str, make) -> str:
+    """Text that depends only on the code (a term's generated C or Python), made once per machine:
+    read from ``generated/KIND/KEY.json`` in brdfcl's cache when it is there and whole, else
+    ``make()`` and written atomically.  ``key`` must change whenever what ``make`` reads does (a
+    hash of those sources); an unwritable cache makes the text in every process."""
+    path = cache_dir() / "generated" / kind / f"{key}.json"
+    try:
+        doc = json.loads(path.read_text())
+        text = doc["text"]
+        if isinstance(text, str) and doc.get("sha1") == hashlib.sha1(text.encode()).hexdigest():
+            return text
+    except (OSError, ValueError, KeyError, TypeError):
+        pass
+    text = make()
+    try:
+        write_json(path, {"text": text, "sha1": hashlib.sha1(text.encode()).hexdigest()})
+    except OSError:
+        pass
+    return text

@@ -1,0 +1,77 @@
+"""Code generated from the terms' formulas is made once per machine: a later process reads it
+back (no SymPy work), gets exactly what generation gives, and makes it again once a formula, the
+printer or SymPy changes, or the kept file is damaged."""
+import dataclasses
+import json
+import sys
+import types
+
+import numpy as np
+import pytest
+
+from brdfcl import _cache
+from brdfcl.kernels import terms as kterms
+from brdfcl.model.terms import REGISTRY, keys, reference
+from tests.test_reference import random_cells
+
+
+@pytest.fixture()
+def fresh(tmp_path, monkeypatch):
+    monkeypatch.setenv("BRDFCL_CACHE_DIR", str(tmp_path))
+    kterms.c_source.cache_clear()
+    reference.compiled.cache_clear()
+    yield tmp_path
+    kterms.c_source.cache_clear()
+    reference.compiled.cache_clear()
+
+
+def test_text_is_made_once_and_a_damaged_file_is_made_again(fresh):
+    calls = []
+    make = lambda: calls.append(1) or "generated text"          # noqa: E731
+    assert _cache.generated("c", "k1", make) == "generated text" and calls == [1]
+    assert _cache.generated("c", "k1", make) == "generated text" and calls == [1]       # read back
+    path = fresh / "generated" / "c" / "k1.json"
+    doc = json.loads(path.read_text())
+    path.write_text(json.dumps({"text": doc["text"][:-3], "sha1": doc["sha1"]}))        # damaged
+    assert _cache.generated("c", "k1", make) == "generated text" and calls == [1, 1]
+    path.write_text("{not json")
+    assert _cache.generated("c", "k1", make) == "generated text" and calls == [1, 1, 1]
+
+
+@pytest.mark.parametrize("kind,name", [("ndf", "gtr"), ("shadowing", "smith_abc"), ("fresnel", "dielectric"),
+                                       ("psd", "abc")])
+def test_kept_code_is_what_generation_gives(fresh, monkeypatch, kind, name):
+    term = REGISTRY[kind][name]
+    made_c = kterms.c_source(term)
+    args, made_ref = reference.compiled(term)
+    kterms.c_source.cache_clear()
+    reference.compiled.cache_clear()
+    monkeypatch.setattr(kterms, "_print_c", lambda t: pytest.fail("printed again"))
+    monkeypatch.setattr(reference, "_generate", lambda t: pytest.fail("lambdified again"))
+    assert kterms.c_source(term) == made_c
+    args2, kept_ref = reference.compiled(term)
+    assert args2 == args
+    rng = np.random.default_rng(1)
+    if term.arg == "f":
+        arg = [rng.uniform(0.1, 20.0, 50)] if args else []
+    else:
+        cells = random_cells(rng, 50)
+        arg = [getattr(cells, a) for a in args]
+    inputs = [p.default for p in term.params] + [0.5] * len(term.uses) + [1.0] * len(term.const_names)
+    for a, b in zip(made_ref(*arg, *inputs), kept_ref(*arg, *inputs)):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+
+
+def test_the_key_follows_the_terms_module(fresh, tmp_path, monkeypatch):
+    src = tmp_path / "my_ndf.py"
+    src.write_text("# version 1\n")
+    mod = types.ModuleType("my_ndf")
+    mod.__file__ = str(src)
+    monkeypatch.setitem(sys.modules, "my_ndf", mod)
+    mine = dataclasses.replace(REGISTRY["ndf"]["ggx"], name="my_ggx", origin="my_ndf")
+    first = keys.formula_key(mine)
+    keys.formula_key.cache_clear()
+    src.write_text("# version 2\n")
+    second = keys.formula_key(mine)
+    keys.formula_key.cache_clear()
+    assert first != second and keys.formula_key(REGISTRY["ndf"]["ggx"]) not in (first, second)
