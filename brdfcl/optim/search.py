@@ -16,7 +16,6 @@ from dataclasses import dataclass
 
 import nlopt
 import numpy as np
-from scipy.stats import qmc
 
 from brdfcl.data.merl import N_PD, N_TD
 from brdfcl.optim.lockstep import Problem, run_lockstep
@@ -86,6 +85,7 @@ def _lds_starts(objective: Objective, target: Target, n: int, options: FitOption
     """The defaults and the best ``n_starts`` Sobol candidates per material: ([(material, x)],
     candidates evaluated per material)."""
     sp = objective.spaces
+    from scipy.stats import qmc  # here: importing scipy.stats costs every start-up 0.3 s
     sob = qmc.Sobol(objective.model.n_free, scramble=True, seed=options.seed).random(options.n_candidates)
     slo, shi = sp.search_box
     cand = np.vstack([sp.default_x(1), slo + sob * (shi - slo)])
