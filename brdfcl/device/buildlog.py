@@ -14,7 +14,7 @@ from pathlib import Path
 from brdfcl._cache import cache_dir
 
 CAUSE_CHARS = 100
-LINE_CHARS = 200                 # the longest error line a user sees without --debug
+LINE_CHARS = 185                 # an error line without --debug: 200 with "brdfcl: error: " before it
 _ERROR = re.compile(r"\b(?:fatal )?error\b[:\s]", re.IGNORECASE)
 _WHERE = re.compile(r"^((?:fatal )?error:\s*)\S+:\d+:\d+:\s*(?:(?:fatal )?error:\s*)?", re.IGNORECASE)
 
