@@ -58,7 +58,7 @@ def test_bad_files_beside_good_ones(mixed, tmp_path):
     assert len(lines) == len(problems) and all(ln.startswith("skipped: ") for ln in lines), lines
     for name, problem in problems.items():
         assert any(str(db / name) in ln and problem in ln for ln in lines), (name, lines)
-    assert "analysed 1 materials" in r.stdout and "2 skipped" in r.stdout
+    assert "analysed 1 material" in r.stdout and "2 skipped" in r.stdout
     rows = (out / "analysis.csv").read_text().splitlines()
     assert len(rows) == 2 and rows[1].startswith(f"{GOOD},")
     assert (out / f"{GOOD}.exr").is_file()

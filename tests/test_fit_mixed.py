@@ -81,7 +81,7 @@ def test_two_files_of_one_material_name_give_one_result(krylon, tmp_path):
     shutil.copy(krylon.path, src / "krylon_blue.brdf")
     write_csv(krylon, src / "krylon_blue.csv")
     r = _run(src, "--out", tmp_path / "o")
-    assert "fitted 1 materials" in r.stdout and "1 skipped" in r.stdout, r.stderr
+    assert "fitted 1 material" in r.stdout and "1 skipped" in r.stdout, r.stderr
     assert (f"skipped: {src / 'krylon_blue.csv'}: material name 'krylon_blue' already taken by "
             f"{src / 'krylon_blue.brdf'} (one result per name; rename one file to fit both)") in r.stderr
 
@@ -106,6 +106,6 @@ def test_select_lobes_takes_scattered_samples(krylon, tmp_path):
     src.mkdir()
     shutil.copy(krylon.path, src / "krylon_blue.brdf")
     r = _run(src, "--out", tmp_path / "o", "--select-lobes")
-    assert "fitted 1 materials" in r.stdout, r.stderr
+    assert "fitted 1 material" in r.stdout, r.stderr
     k = json.loads((tmp_path / "o" / "krylon_blue.json").read_text())
     assert k["selected_by"] == "lobe comparison" and k["verdict"] == "none" and len(k["wavelengths_um"]) == 31

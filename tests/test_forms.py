@@ -142,7 +142,7 @@ def test_fit_all_refines_gtr_from_the_ggx_fits(demo_db, tmp_path):
                         "--select-lobes", "--forms", "gtr,ggx:schlick", "--no-report"],
                        capture_output=True, text=True)
     assert r.returncode == 0, r.stderr[-2000:]
-    assert "form gtr:schlick: fitted 1 materials from the ggx:schlick fits" in r.stdout + r.stderr
+    assert "form gtr:schlick: fitted 1 material from the ggx:schlick fits" in r.stdout + r.stderr
     doc = json.loads((out / "synth-rough-metal.json").read_text())
     err = {k: v["rmse_log"] for k, v in doc["form_errors"].items()}
     assert err["ggx:schlick"] > 1e-4                                         # not at the float32 floor

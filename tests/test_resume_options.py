@@ -153,7 +153,7 @@ def test_resume_checks_the_options(db, tmp_path):
                                 (["--fix", "ct.F0_r=0.5"], "fixed", "--fix"),
                                 (["--ct-peak"], "ct_peak", "--ct-peak"),
                                 (["--max-iter", "20"], "lm.max_iter", "--max-iter")]:
-        line = one_error_line(cli(*base, *extra), option, flag, "--overwrite", "new --out", "there")
+        line = one_error_line(cli(*base, *extra), option, flag, "--overwrite", "new output folder (--out)", "there")
         assert f"{NAME}.json" in line or "synth-fabric.json" in line
     line = one_error_line(cli("fit-all", db, "--out", out, "--model", "diffuse+beckmann", "--quiet"),
                           "model (--model)", "diffuse+ggx", "diffuse+beckmann")

@@ -60,12 +60,15 @@ def test_bad_files_are_skipped_with_one_line_each(mixed_db, tmp_path):
 def test_empty_folder_bad_output_bad_model(tmp_path, demo_db):
     (tmp_path / "empty").mkdir()
     r = cli("fit-all", tmp_path / "empty", "--out", tmp_path / "o")
-    assert r.returncode == 2 and "no .binary files" in r.stderr and "Traceback" not in r.stderr
+    assert r.returncode == 2 and "no measurement files in this folder (MERL .binary, .brdf, .csv)" in r.stderr
+    assert "Traceback" not in r.stderr and len(r.stderr.strip().splitlines()) == 1
     (tmp_path / "afile").write_text("x")
     r = cli("fit-all", demo_db, "--out", tmp_path / "afile" / "sub")
     assert r.returncode == 2 and "cannot be written" in r.stderr and str(tmp_path / "afile") in r.stderr
     r = cli("fit-all", demo_db, "--out", tmp_path / "o", "--model", "diffuse+phong")
     assert r.returncode == 2 and "unknown lobe 'phong'" in r.stderr and "ggx" in r.stderr
+    r = cli("fit-all", demo_db, "--out", tmp_path / "o", "--model", "difraction")
+    assert r.returncode == 2 and "unknown lobe 'difraction'; did you mean 'diffraction'?" in r.stderr
     r = cli("fit-all", demo_db, "--out", tmp_path / "o", "--fix", "ct.nope=1")
     assert r.returncode == 2 and "cannot fix 'ct.nope'" in r.stderr and "ct.alpha" in r.stderr
     r = cli("fit-all", demo_db, "--out", tmp_path / "o", "--metric", "l3")

@@ -104,7 +104,8 @@ def add_database_arguments(p: argparse.ArgumentParser, verb: str, out_help: str,
     """What fit-all and analyze share: the database (or --demo), the output, the fit options.
     ``job``: the function the command runs (brdfcl.app.run.fit_all, brdfcl.app.analyze.analyze), whose
     defaults the other flags take."""
-    p.add_argument("database", nargs="?", default=None, help="folder of MERL .binary files")
+    p.add_argument("database", nargs="?", default=None,
+                   help="folder of measurements (MERL .binary tables, Cornell .brdf or .csv samples) or one file")
     p.add_argument("--demo", action="store_true", help=f"{verb} the embedded demo database")
     p.add_argument("--out", required=True, help=out_help)
     add_fit_arguments(p)

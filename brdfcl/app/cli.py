@@ -138,7 +138,7 @@ def cmd_fit_all(args):
             client.close()
     n_ok = sum(r.success for r in report.results)
     failed = [r for r in report.results if not r.success]
-    print(f"fitted {n_ok} materials in {report.seconds:.1f} s ({len(report.resumed)} already done, "
+    print(f"fitted {n_ok} material{'s' * (n_ok != 1)} in {report.seconds:.1f} s ({len(report.resumed)} already done, "
           f"{len(failed)} failed, {len(report.skipped)} skipped); results in {args.out}/summary.csv"
           + (f", report {report.pages}" if report.pages else ""))
     for r in failed:
@@ -157,7 +157,7 @@ def cmd_analyze(args):
     res = analyze(source, args.out, opts, batch=args.batch, log=log, figures=not args.no_figures,
                   ct_peak=not args.free_peak, on_skip=on_skip, pages=not args.no_report)
     n = sum(a.verdict == "diffraction" for a in res)
-    print(f"analysed {len(res)} materials: {n} with diffraction, {len(res) - n} without, "
+    print(f"analysed {len(res)} material{'s' * (len(res) != 1)}: {n} with diffraction, {len(res) - n} without, "
           f"{len(res.skipped)} skipped; see {args.out}/analysis.csv and {args.out}/index.html"
           + ("" if args.no_report else f", report {args.out}/report/index.html"))
     return 0 if res.ok else 1

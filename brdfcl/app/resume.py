@@ -79,5 +79,5 @@ def _differ_message(out: Path, differ: list, total: int, current: dict) -> str:
             return json.dumps(v) if plain else "absent"
         what = (f"was made with other options: {option}{f' ({flag})' if flag else ''} is {show(old)} there, "
                 f"{show(new)} now")
-    return (f"{where} {what}{many}; to proceed, give a new --out, or --overwrite (overwrite=True) to "
+    return (f"{where} {what}{many}; to proceed, give a new output folder (--out), or --overwrite to "
             f"refit and replace those results")

@@ -13,7 +13,7 @@ import os
 from pathlib import Path
 
 from brdfcl.data.merl import MerlError, list_database, read_merl, read_merl_at
-from brdfcl.data.readers import find_measurements
+from brdfcl.data.readers import READERS, find_measurements
 
 
 class InputOverwriteError(ValueError):
@@ -28,7 +28,10 @@ def database_paths(source) -> list[str]:
             return [os.fspath(source)]
         samples = [os.fspath(p) for p in find_measurements(source)] if os.path.isdir(source) else []
         if not samples:
-            return list_database(source)          # its one-line error when there is nothing
+            if os.path.isdir(source) and not any(is_table(f) for f in os.listdir(source)):
+                raise MerlError(f"{os.fspath(source)}: no measurement files in this folder (MERL .binary, "
+                                f"{', '.join(sorted(READERS))})")
+            return list_database(source)          # its one-line error when it is not a folder
         tables = [p for p in (os.path.join(source, f) for f in os.listdir(source)) if is_table(p)]
         return sorted(tables + samples, key=lambda p: os.path.basename(p))
     return [os.fspath(p) for p in source]

@@ -18,6 +18,7 @@ reference are the one description that the kernels, optimiser and exports all re
 """
 from __future__ import annotations
 
+import difflib
 from functools import cached_property
 
 import numpy as np
@@ -68,7 +69,10 @@ def parse_lobe(text: str, lambdas=LAMBDAS) -> Lobe:
             return CookTorrance(name, lambdas=lambdas, **kw)
         except (ValueError, KeyError) as e:
             raise ModelError(f"'{text}': {e}") from None
-    raise ModelError(f"unknown lobe '{name}' in '{text}'; {_valid_text()}")
+    where = f" in '{text}'" if text.strip().lower() != name else ""
+    close = difflib.get_close_matches(name, ["diffuse", "diffraction", *CT_NDFS], n=1)
+    hint = f"; did you mean '{close[0]}'?" if close else ";"
+    raise ModelError(f"unknown lobe '{name}'{where}{hint} {_valid_text()}")
 
 
 def lobe_prefixes(kinds):

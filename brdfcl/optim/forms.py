@@ -271,7 +271,8 @@ class FormFitter:
             f = self.fitters[key]
             src = start_source(key, fitted)
             fitted[key] = fit(f, None if src is None else src[1](fitted[src[0]], f.model))
-            log(f"form {key}: fitted {n} materials" + (f" from the {src[0]} fits (no global search)" if src else ""))
+            log(f"form {key}: fitted {n} material{'s' * (n != 1)}"
+                + (f" from the {src[0]} fits (no global search)" if src else ""))
         out = []
         for i in range(n):
             errors = {k: fitted[k][i].errors["rmse_log"] for k in self.forms
