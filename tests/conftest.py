@@ -74,3 +74,19 @@ def demo_db(tmp_path_factory):
     d = tmp_path_factory.mktemp("demo")
     write_synth(d, log=None)
     return d
+
+
+@pytest.fixture()
+def user_ndf(tmp_path, monkeypatch):
+    """A user's own NDF (GGX under another name) registered from a module file in tmp_path, as a
+    user's term module would be: (the module's file, the term)."""
+    import dataclasses
+    import types
+
+    from brdfcl.model.terms import REGISTRY
+    src = tmp_path / "my_ndf.py"
+    src.write_text("# version 1\n")
+    mod = types.ModuleType("my_ndf")
+    mod.__file__ = str(src)
+    monkeypatch.setitem(sys.modules, "my_ndf", mod)
+    return src, dataclasses.replace(REGISTRY["ndf"]["ggx"], name="my_ggx", origin="my_ndf")

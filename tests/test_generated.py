@@ -1,10 +1,7 @@
 """Code generated from the terms' formulas is made once per machine: a later process reads it
 back (no SymPy work), gets exactly what generation gives, and makes it again once a formula, the
 printer or SymPy changes, or the kept file is damaged."""
-import dataclasses
 import json
-import sys
-import types
 
 import numpy as np
 import pytest
@@ -62,13 +59,8 @@ def test_kept_code_is_what_generation_gives(fresh, monkeypatch, kind, name):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
 
 
-def test_the_key_follows_the_terms_module(fresh, tmp_path, monkeypatch):
-    src = tmp_path / "my_ndf.py"
-    src.write_text("# version 1\n")
-    mod = types.ModuleType("my_ndf")
-    mod.__file__ = str(src)
-    monkeypatch.setitem(sys.modules, "my_ndf", mod)
-    mine = dataclasses.replace(REGISTRY["ndf"]["ggx"], name="my_ggx", origin="my_ndf")
+def test_the_key_follows_the_terms_module(fresh, user_ndf):
+    src, mine = user_ndf
     first = keys.formula_key(mine)
     keys.formula_key.cache_clear()
     src.write_text("# version 2\n")

@@ -279,22 +279,14 @@ def test_info_shows_status_width_reason_and_self_test():
     assert max(map(len, r.stdout.splitlines() + r.stderr.splitlines())) <= 200
 
 
-def test_the_kernel_hash_follows_every_term_module(tmp_path, monkeypatch):
+def test_the_kernel_hash_follows_every_term_module(user_ndf, monkeypatch):
     """Cached decisions about compiled programs (vector widths) are keyed by a hash of what the
     kernels are made from, a user's own term module included, without generating any C."""
-    import dataclasses
-    import types
-
     from brdfcl.kernels import codegen
     from brdfcl.model.terms import REGISTRY
+    src, mine = user_ndf
     codegen.kernel_sources_hash.cache_clear()
     before = codegen.kernel_sources_hash()
-    src = tmp_path / "my_ndf.py"
-    src.write_text("# version 1\n")
-    mod = types.ModuleType("my_ndf")
-    mod.__file__ = str(src)
-    monkeypatch.setitem(sys.modules, "my_ndf", mod)
-    mine = dataclasses.replace(REGISTRY["ndf"]["ggx"], name="my_ggx", origin="my_ndf")
     monkeypatch.setitem(REGISTRY["ndf"], "my_ggx", mine)
     try:
         codegen.kernel_sources_hash.cache_clear()
