@@ -6,8 +6,10 @@ without them), so decisions that depend on the CPU key on its own flags and name
 from __future__ import annotations
 
 import platform
+from functools import cache
 
 
+@cache
 def _cpuinfo(field: str) -> str:
     try:
         with open("/proc/cpuinfo") as f:

@@ -18,7 +18,7 @@ import pyopencl as cl
 from brdfcl.data.geometry import DEFAULT_CUTOFF_DEG, table_geometry
 from brdfcl.device import buildlog, selftest, width
 from brdfcl.device.cellsets import CellSet, build_cellset, build_sample_cellset, extract, select_cells
-from brdfcl.device.platforms import has_fp64, pick_device
+from brdfcl.device.platforms import has_fp64, is_cpu, pick_device
 from brdfcl.device.program import (
     KERNELS,
     ProgramError,
@@ -28,7 +28,6 @@ from brdfcl.device.program import (
     remember_pocl_cache,
     repair_pocl_cache,
 )
-from brdfcl.device.width import is_cpu
 from brdfcl.kernels.codegen import KernelOptions, jtj_pairs, n_outputs, render
 from brdfcl.model.compose import Model
 from brdfcl.model.metrics import METRICS

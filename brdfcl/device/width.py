@@ -28,7 +28,7 @@ import pyopencl as cl
 from brdfcl._cache import cache_dir, locked, read_json, update_json
 from brdfcl._version import __version__
 from brdfcl.device import buildlog, cpu
-from brdfcl.device.platforms import selector_of
+from brdfcl.device.platforms import is_cpu, selector_of
 from brdfcl.device.program import ABI_WARNING, ProgramError
 from brdfcl.kernels.codegen import kernel_sources_hash
 
@@ -65,10 +65,6 @@ def forced_width(explicit=None) -> WidthChoice | None:
     if env:
         return WidthChoice(check_width(env), f"forced by {ENV}", "")
     return None
-
-
-def is_cpu(device) -> bool:
-    return bool(device.type & cl.device_type.CPU)
 
 
 def preferred(device, real) -> int:
