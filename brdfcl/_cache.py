@@ -5,6 +5,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import zipfile
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -75,3 +76,24 @@ def generated(kind: str, key: str, make) -> str:
     except OSError:
         pass
     return text
+
+
+def generated_arrays(kind: str, key: str, make) -> dict:
+    """Arrays that depend only on the code, made once per machine: ``generated`` for a dict of
+    numpy arrays, kept as ``generated/KIND/KEY.npz`` (no pickled objects)."""
+    import numpy as np
+    path = cache_dir() / "generated" / kind / f"{key}.npz"
+    try:
+        with np.load(path, allow_pickle=False) as f:
+            return {k: f[k] for k in f.files}
+    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile):
+        pass
+    arrays = make()
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_name(f".{path.name}.tmp{os.getpid()}.npz")
+        np.savez(tmp, **arrays)
+        os.replace(tmp, path)
+    except OSError:
+        pass
+    return arrays

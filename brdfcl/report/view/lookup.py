@@ -23,35 +23,54 @@ def rusinkiewicz(wi, wo):
     return th, np.arccos(np.clip(dz, -1.0, 1.0)), np.mod(np.arctan2(y, dx), np.pi)
 
 
-def table_lookup(brdf, wi, wo, interp="log"):
-    """BRDF (3, n) of a MerlTable or (3, N_CELLS) array at direction pairs (n, 3).
-
-    Index coordinates are those of brdfcl.data.geometry.bin_centres (theta_h's is
-    90 sqrt(theta_h / (pi/2)) - 1/2); phi_d is periodic (reciprocity).  ``nearest``: the bin's
-    value, NaN where it is missing.  ``linear``: trilinear over the neighbouring bin centres
-    present (missing ones left out, weights renormalised), NaN where all are missing.  ``log``:
-    the same on log values (linear where a neighbour is <= 0): a sharp peak is interpolated
-    as the shape it has (on the demo mirror, alpha = 1e-3, the environment sphere of the table
-    is within 4 % of the model's, against 15 % interpolating linearly)."""
-    brdf = brdf.brdf() if isinstance(brdf, MerlTable) else brdf
+def _index_coordinates(wi, wo):
+    """Fractional (theta_h, theta_d, phi_d) bin coordinates of direction pairs (those of
+    brdfcl.data.geometry.bin_centres: theta_h's is 90 sqrt(theta_h / (pi/2)) - 1/2)."""
     th, td, pd = rusinkiewicz(np.asarray(wi, float), np.asarray(wo, float))
     _, td0, pd0 = bin_centres()
-    u = [np.clip(N_TH * np.sqrt(th / (np.pi / 2)) - 0.5, 0, N_TH - 1),
-         np.clip(td / (td0[1] - td0[0]) - 0.5, 0, N_TD - 1), pd / (pd0[1] - pd0[0]) - 0.5]
-    if interp == "nearest":
-        i = [np.clip(np.floor(x + 0.5).astype(int), 0, n - 1) for x, n in zip(u, (N_TH, N_TD, N_PD))]
-        return brdf[:, (i[2] % N_PD) + N_PD * (i[1] + N_TD * i[0])]
-    if interp not in ("linear", "log"):
-        raise ValueError(f"interp '{interp}': nearest, linear or log")
-    rows = brdf.T                    # (N_CELLS, 3): one gather per corner, fastest when contiguous
+    return [np.clip(N_TH * np.sqrt(th / (np.pi / 2)) - 0.5, 0, N_TH - 1),
+            np.clip(td / (td0[1] - td0[0]) - 0.5, 0, N_TD - 1), pd / (pd0[1] - pd0[0]) - 0.5]
+
+
+def nearest_cells(wi, wo, stride=(1, 1, 1)):
+    """The table cell index (n,) whose bin holds each direction pair; with ``stride`` (theta_h,
+    theta_d, phi_d) the nearest of every stride-th bin along each axis (a coarser table)."""
+    u = _index_coordinates(wi, wo)
+    i = [np.floor(x / s + 0.5).astype(int) * s for x, s in zip(u, stride)]
+    i[0], i[1] = (np.clip(x, 0, (n - 1) // s * s) for x, n, s in zip(i[:2], (N_TH, N_TD), stride))
+    return (i[2] % N_PD) + N_PD * (i[1] + N_TD * i[0])
+
+
+def corners(wi, wo):
+    """Trilinear interpolation of the table at direction pairs (n, 3): the cell indices (8, n) of
+    the neighbouring bin centres and their weights (8, n); phi_d is periodic (reciprocity).
+    Computed once for points looked up in many tables (`interpolate`)."""
+    u = _index_coordinates(wi, wo)
     lo = [np.minimum(np.floor(x).astype(int), n - 2) for x, n in zip(u, (N_TH, N_TD, N_PD + 1))]
     fr = [x - i for x, i in zip(u, lo)]
-    acc, acc_log, wsum = (np.zeros((th.size, 3)) for _ in range(3))
-    positive = np.ones((th.size, 3), dtype=bool)
+    index, weight = np.empty((8, lo[0].size), dtype=np.int64), np.empty((8, lo[0].size))
     for corner in range(8):
         b = [(corner >> k) & 1 for k in range(3)]
-        w = np.prod([f if bit else 1 - f for f, bit in zip(fr, b)], axis=0)[:, None]
-        v = rows[((lo[2] + b[2]) % N_PD) + N_PD * (lo[1] + b[1] + N_TD * (lo[0] + b[0]))]
+        weight[corner] = np.prod([f if bit else 1 - f for f, bit in zip(fr, b)], axis=0)
+        index[corner] = ((lo[2] + b[2]) % N_PD) + N_PD * (lo[1] + b[1] + N_TD * (lo[0] + b[0]))
+    return index, weight
+
+
+def interpolate(brdf, where, interp="log"):
+    """BRDF (3, n) of a (3, N_CELLS) array at the points of ``where = corners(wi, wo)``:
+    ``linear``: trilinear over the neighbouring bin centres present (missing ones left out,
+    weights renormalised), NaN where all are missing; ``log``: the same on log values (linear
+    where a neighbour is <= 0)."""
+    if interp not in ("linear", "log"):
+        raise ValueError(f"interp '{interp}': nearest, linear or log")
+    index, weight = where
+    rows = brdf.T                    # (N_CELLS, 3): one gather per corner, fastest when contiguous
+    n = index.shape[1]
+    acc, acc_log, wsum = (np.zeros((n, 3)) for _ in range(3))
+    positive = np.ones((n, 3), dtype=bool)
+    for corner in range(8):
+        w = weight[corner][:, None]
+        v = rows[index[corner]]
         ok = np.isfinite(v)
         acc += np.where(ok, v, 0.0) * w
         wsum += ok * w
@@ -64,3 +83,16 @@ def table_lookup(brdf, wi, wo, interp="log"):
         if interp == "log":
             out = np.where(positive & (wsum > 0), np.exp(acc_log / wsum), out)
     return out.T
+
+
+def table_lookup(brdf, wi, wo, interp="log"):
+    """BRDF (3, n) of a MerlTable or (3, N_CELLS) array at direction pairs (n, 3).
+
+    ``nearest``: the value of the bin holding each pair, NaN where it is missing; ``linear`` and
+    ``log``: `interpolate` between bin centres.  Log values interpolate a sharp peak as the shape
+    it has (on the demo mirror, alpha = 1e-3, the environment sphere of the table is within 4 % of
+    the model's, against 15 % interpolating linearly)."""
+    brdf = brdf.brdf() if isinstance(brdf, MerlTable) else brdf
+    if interp == "nearest":
+        return brdf[:, nearest_cells(wi, wo)]
+    return interpolate(brdf, corners(wi, wo), interp)

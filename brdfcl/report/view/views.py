@@ -1,0 +1,255 @@
+"""Every direction pair the report shows of a material, planned once per process.
+
+A report page shows lit spheres (brdfcl.report.view.sphere's camera and lights) and slices
+(brdfcl.report.view.slices) of the measurement and of its fit.  Their geometry is the same for
+every material, so a `Plan` computes it once: the direction pairs of the point-lit sphere pixels
+and of the slices (``cells``, with the table's interpolation corners there), and for each
+environment-lit sphere a sparse operator from table cells to pixels (``EnvView``).  Each
+material then costs a table interpolation, one model evaluation at the plan's points (the
+OpenCL engine for all materials of one model at once, brdfcl.report.view.evaluate) and three
+sparse products per environment sphere.
+
+The environment sphere integrates, per pixel, one fixed set of half vectors
+(sphere.half_vector_samples) as sphere.render_sphere does, with each sample taking the value of
+the table cell whose bin holds it, for the measurement and for the fit alike (the fit is
+evaluated at those cells' bin centres: the model tabulated as a MERL table; every theta_h bin,
+every second theta_d and phi_d bin).  Both images thus see the same discretisation, and their
+difference is the model's, not the lookup's.  Near the horizon a bin's centre can lie far from
+the sample in cos theta, where a model's 1 / cos(theta) is large: such samples are left out and
+their weight spread over the pixel's others.  Against the exact rendering of a fit
+(sphere.render_model_sphere), measured on MERL-proxy fits at 64 px: median relative difference
+0.1-0.7 % (99th percentile 0.6-3 %) for rough and medium lobes, 6 % (19 %) for chrome, whose peak
+is narrower than the table's first theta_h bins.  The operator is computed once per machine
+(brdfcl._cache.generated_arrays).
+"""
+from __future__ import annotations
+
+import hashlib
+import sys
+from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+from scipy import sparse
+
+from brdfcl._cache import generated_arrays
+from brdfcl.data.geometry import table_geometry
+from brdfcl.model.lobes.cells import Cells
+from brdfcl.report.view import sphere
+from brdfcl.report.view.lookup import corners, interpolate, nearest_cells
+from brdfcl.report.view.slices import INCIDENCE_DEG, PLANES, outgoing_deg, slice_directions
+
+THUMB_SIZE = 96
+ENV_STRIDE = (1, 2, 2)            # the environment's table: every theta_h bin, every 2nd theta_d and phi_d
+GRAZING_LOG_RATIO = np.log(1.5)   # a sample whose bin centre's cos theta_i or _o is off by more: left out
+
+
+@dataclass
+class PointView:
+    """A sphere under a point light: its pixels on the sphere (``inside``), the lit ones among them
+    (``lit``) with their cos(theta_i), and where their direction pairs are in the plan (``span``)."""
+
+    label: str
+    light: np.ndarray
+    size: int
+    inside: np.ndarray
+    lit: np.ndarray
+    kind = "point"
+    cos: np.ndarray
+    span: slice
+
+    def image(self, values):
+        """Radiance (size, size, 3) from BRDF values (3, n) at the plan's points; NaN off the sphere."""
+        out = np.full((self.size, self.size, 3), np.nan)
+        rad = np.zeros((int(self.inside.sum()), 3))
+        rad[self.lit] = (values[:, self.span] * self.cos).T
+        out[self.inside] = rad
+        return out
+
+
+@dataclass
+class EnvView:
+    """A sphere in the sky/ground environment: per channel a sparse (pixels x cells) matrix of
+    sample weights times the environment's radiance, for the table cells ``cells``."""
+
+    label: str
+    light: np.ndarray
+    size: int
+    inside: np.ndarray
+    cells: np.ndarray
+    weights: tuple
+    kind = "env"
+    columns: np.ndarray | None = None     # where ``cells`` are in the plan's env_cells
+
+    def __post_init__(self):
+        self.total = [np.maximum(np.asarray(w.sum(axis=1)).ravel(), 1e-300) for w in self.weights]
+
+    def image(self, values):
+        """Radiance (size, size, 3) from BRDF values (3, len(cells)) at ``cells``; NaN off the
+        sphere and where less than sphere.MIN_VALID_SHARE of the light meets a value."""
+        out = np.full((self.size, self.size, 3), np.nan)
+        good = np.isfinite(values)
+        rad = np.empty((int(self.inside.sum()), 3))
+        for c, w in enumerate(self.weights):
+            if good[c].all():
+                rad[:, c] = w @ values[c]
+                continue
+            share = (w @ good[c].astype(float)) / self.total[c]
+            r = (w @ np.where(good[c], values[c], 0.0)) / np.maximum(share, 1e-300)
+            rad[:, c] = np.where(share >= sphere.MIN_VALID_SHARE, r, np.nan)
+        out[self.inside] = rad
+        return out
+
+
+@dataclass
+class SliceView:
+    """One slice: the outgoing angles (deg), their cos(theta_o) and where they are in the plan."""
+
+    dphi: float | None
+    theta_i: float
+    theta_o: np.ndarray
+    cos: np.ndarray
+    span: slice
+
+
+class Plan:
+    """The report's views (see the module's docstring): ``spheres`` (key, grazing, environment
+    at the sizes given), the ``thumb`` (the first light at THUMB_SIZE), the ``slices``; ``cells``
+    holds every point view's and slice's direction pairs in order, ``in_plane`` the span of the
+    in-plane slices (where the lobes are drawn one by one)."""
+
+    def __init__(self, lights, size, env_size):
+        wi_all, wo_all, spheres, n = [], [], [], 0
+        views = [(label, kind, d, min(size, env_size) if kind == "env" else size) for label, kind, d in lights]
+        label, kind, d = lights[0]
+        views.append(("thumb", kind, d, THUMB_SIZE))
+        for label, kind, d, s in views:
+            if kind == "env":
+                spheres.append(_env_view(label, d, s))
+                continue
+            view, wi, wo = _point_view(label, d, s, n)
+            spheres.append(view)
+            wi_all.append(wi)
+            wo_all.append(wo)
+            n += len(wi)
+        self.thumb = spheres.pop()
+        self.spheres = spheres
+        self.slices = []
+        first = n
+        for dphi, _ in PLANES:
+            for ti in INCIDENCE_DEG:
+                to = outgoing_deg(dphi)
+                wi, wo = slice_directions(ti, to, dphi)
+                self.slices.append(SliceView(dphi, ti, to, wo[:, 2], slice(n, n + len(to))))
+                wi_all.append(wi)
+                wo_all.append(wo)
+                n += len(to)
+            if dphi is None:
+                self.in_plane = slice(first, n)
+        wi, wo = np.concatenate(wi_all), np.concatenate(wo_all)
+        self.cells = Cells.from_directions(wi, wo)
+        self.corners = corners(wi, wo)
+        envs = [v for v in self.spheres if isinstance(v, EnvView)]
+        self.env_cells = np.unique(np.concatenate([v.cells for v in envs] + [np.zeros(0, dtype=np.int64)]))
+        for v in envs:
+            v.columns = np.searchsorted(self.env_cells, v.cells)
+
+    def measured(self, brdf):
+        """The table's values: (3, n) at ``cells`` (log-trilinear, brdfcl.report.view.lookup) and
+        (3, len(env_cells)) at ``env_cells``."""
+        return interpolate(brdf, self.corners), brdf[:, self.env_cells]
+
+    def env_values(self, view, values):
+        """The part of values at ``env_cells`` that ``view`` reads."""
+        return values[:, view.columns]
+
+    def images(self, at_points, at_env):
+        """{label: radiance image} of every sphere and the thumb, from values at ``cells`` and at
+        ``env_cells``."""
+        out = {}
+        for v in self.spheres + [self.thumb]:
+            out[v.label] = v.image(at_points) if isinstance(v, PointView) else v.image(self.env_values(v, at_env))
+        return out
+
+
+def plan(lights=None, size=128, env_size=64) -> Plan:
+    """The Plan of these views (sphere.DEFAULT_LIGHTS' form), made once per process."""
+    key = tuple((label, kind, tuple(float(x) for x in d)) for label, kind, d in lights or sphere.DEFAULT_LIGHTS)
+    return _plan(key, size, env_size)
+
+
+@lru_cache(maxsize=4)
+def _plan(lights, size, env_size):
+    return Plan([(label, kind, np.array(d)) for label, kind, d in lights], size, env_size)
+
+
+def _frames(size):
+    normals, inside = sphere.sphere_normals(size)
+    n = normals[inside]
+    t, b = sphere.local_frame(n)
+    return inside, n, t, b, np.stack([t[:, 2], b[:, 2], n[:, 2]], -1)
+
+
+def _point_view(label, light, size, first):
+    light = sphere._unit(*light)
+    inside, n, t, b, wo = _frames(size)
+    cos = n @ light
+    lit = np.flatnonzero(cos > 0)
+    wi = np.stack([t[lit] @ light, b[lit] @ light, cos[lit]], -1)
+    return PointView(label, light, size, inside, lit, cos[lit], slice(first, first + lit.size)), wi, wo[lit]
+
+
+def _env_view(label, zenith, size):
+    zenith = sphere._unit(*zenith)
+    inside = sphere.sphere_normals(size)[1]
+    key = hashlib.sha1(repr((_sources(), tuple(zenith), size, ENV_STRIDE, GRAZING_LOG_RATIO,
+                             sphere.half_vector_samples()[0].shape)).encode()).hexdigest()[:24]
+    a = generated_arrays("report-env", key, lambda: _env_arrays(zenith, size))
+    shape = (int(inside.sum()), a["cells"].size)
+    weights = tuple(sparse.csr_matrix((a["data"][:, c], a["indices"], a["indptr"]), shape=shape) for c in range(3))
+    return EnvView(label, zenith, size, inside, a["cells"], weights)
+
+
+def _sources():
+    """What the environment operator is computed from: these modules' text."""
+    from brdfcl.data import geometry
+    from brdfcl.report.view import lookup
+    return hashlib.sha1(b"".join(Path(m.__file__).read_bytes()
+                                 for m in (sys.modules[__name__], sphere, lookup, geometry))).hexdigest()
+
+
+def _env_arrays(zenith, size):
+    """The environment operator as arrays: its table ``cells`` and one CSR pattern (``indptr``,
+    ``indices``) with the weights of the three channels (``data``, (nnz, 3))."""
+    inside, n, t, b, wo = _frames(size)
+    hs, dw = sphere.half_vector_samples()
+    hw = wo @ hs.T                                                     # (P, K): h.wo = h.wi
+    wi = 2.0 * hw[..., None] * hs - wo[:, None, :]
+    ok = (hw > 0) & (wi[..., 2] > 0)
+    pix, k = np.nonzero(ok)
+    wi, hw = wi[pix, k], hw[pix, k]
+    cell = nearest_cells(wi, wo[pix], ENV_STRIDE)
+    g = table_geometry()
+    # near the horizon a bin's centre may lie far from the sample in cos theta (and the model's
+    # 1 / cos there): such samples, and bins below the horizon, are left out (the bins hold
+    # direction pairs in either order: reciprocity)
+    lo, hi = np.minimum(wi[:, 2], wo[pix, 2]), np.maximum(wi[:, 2], wo[pix, 2])
+    c_lo, c_hi = np.minimum(g.cos_i[cell], g.cos_o[cell]), np.maximum(g.cos_i[cell], g.cos_o[cell])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        off = np.maximum(np.abs(np.log(c_lo / lo)), np.abs(np.log(c_hi / hi)))
+    keep = g.above_horizon[cell] & (off < GRAZING_LOG_RATIO)
+    world = wi[:, :1] * t[pix] + wi[:, 1:2] * b[pix] + wi[:, 2:] * n[pix]
+    weight = (4.0 * hw * wi[:, 2] * dw[k])[:, None] * sphere.environment(world, zenith)
+    full = np.bincount(pix, weight.sum(1), minlength=n.shape[0])
+    kept = np.bincount(pix[keep], weight[keep].sum(1), minlength=n.shape[0])
+    weight *= (full / np.maximum(kept, 1e-300))[pix, None]          # what is left out, spread over the rest
+    pix, cell, weight = pix[keep], cell[keep], weight[keep]
+    cells, col = np.unique(cell, return_inverse=True)
+    shape = (int(inside.sum()), cells.size)
+    pattern = sparse.csr_matrix((np.arange(1, pix.size + 1, dtype=float), (pix, col)), shape=shape)
+    pattern.sum_duplicates()
+    per_channel = [sparse.csr_matrix((weight[:, c], (pix, col)), shape=shape) for c in range(3)]
+    assert all(np.array_equal(m.indices, pattern.indices) for m in per_channel)
+    data = np.stack([m.data for m in per_channel], -1)
+    return {"cells": cells, "indptr": pattern.indptr, "indices": pattern.indices, "data": data}
