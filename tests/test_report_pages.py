@@ -34,7 +34,7 @@ def test_pages_hold_what_a_user_reads(run):
         assert f"href='{n}.html'" in index and f"{n}/{n}-thumb.png" in index
         page = (run / "report" / f"{n}.html").read_text()
         for what in ("standard error", "Directional albedo", f"{n}-sphere-key.png", f"{n}-sphere-env.png",
-                     f"{n}-slices.png", f"{n}-lobes.png", "ct.alpha"):
+                     f"{n}-slices.svg", f"{n}-lobes.svg", "median relative difference", "ct.alpha"):
             assert what in page, (n, what)
     assert "diffraction.rho" in index and "rmse_log" in index        # grouped parameters, metrics
 

@@ -12,14 +12,12 @@ from brdfcl.model.compose import Model
 from brdfcl.model.lobes.cells import Cells
 from brdfcl.report.view import sphere
 from brdfcl.report.view.lookup import rusinkiewicz, table_lookup
-from brdfcl.report.view.slices import slice_directions, slice_values, write_slices
-from brdfcl.report.view.sphere import (
-    DEFAULT_LIGHTS,
-    render_model_sphere,
-    render_table_sphere,
-    sphere_normals,
-    write_spheres,
-)
+from brdfcl.report.view.evaluate import Evaluator
+from brdfcl.report.view.material import curves, write_images
+from brdfcl.report.view.slices import slice_curves, slice_directions, slice_values, write_slices
+from brdfcl.report.view.sphere import DEFAULT_LIGHTS, render_model_sphere, render_table_sphere, sphere_normals
+from brdfcl.report.view.svgplot import TOLERANCE_PX, _thin
+from brdfcl.report.view.views import plan
 
 NAME = "synth-smooth-metal"
 
@@ -122,26 +120,83 @@ def test_slice_convention():
 
 
 def test_written_files(metal, tmp_path):
+    import xml.etree.ElementTree as ET
+
     import OpenEXR
     from matplotlib.image import imread
     table, model, params = metal
-    paths = write_spheres(tmp_path, NAME, table, model, params, lights=DEFAULT_LIGHTS[:1], size=48)
-    paths += write_slices(tmp_path, NAME, table, model, params, polar=True)
-    names = sorted(p.name for p in paths)
-    assert names == sorted([f"{NAME}-sphere-key.png", f"{NAME}-sphere-key.exr", f"{NAME}-thumb.png",
-                            f"{NAME}-slices.png", f"{NAME}-lobes.png", f"{NAME}-slices-polar.png",
-                            f"{NAME}-lobes-polar.png"])
+    paths, captions = write_images(tmp_path, NAME, table, model, params, lights=DEFAULT_LIGHTS[:1], size=48)
+    paths += write_slices(tmp_path / "direct", NAME, table, model, params)
+    assert {p.name for p in paths} == {f"{NAME}-sphere-key.png", f"{NAME}-sphere-key.exr", f"{NAME}-thumb.png",
+                                       f"{NAME}-slices.svg", f"{NAME}-lobes.svg"}
     for p in paths:
         assert p.stat().st_size > 2000, p
         if p.suffix == ".png":
             img = imread(p)
             assert img.ndim == 3 and img[..., :3].std() > 0.01, p
+        if p.suffix == ".svg":
+            root = ET.parse(p).getroot()
+            assert root.tag.endswith("svg") and len(root.findall(".//{*}path")) > 20, p
+    assert "median relative difference" in captions[f"{NAME}-sphere-key.png"]
     assert imread(tmp_path / f"{NAME}-thumb.png").shape[:2] == (96, 192)
     with OpenEXR.File(str(tmp_path / f"{NAME}-sphere-key.exr"), separate_channels=True) as f:
         ch = f.channels()
         assert {"A", "measured.R", "fitted.G", "difference.B"} <= set(ch)
         assert ch["fitted.R"].pixels.shape == (48, 48)
-    assert not list(tmp_path.glob("*.tmp*"))
+    assert not list(tmp_path.rglob("*.tmp*"))
+
+
+def test_plan_shows_what_the_direct_renderers_show(metal):
+    """The report's plan: point-lit spheres and slices are the direct renderings' values; the
+    environment sphere (the table's bins, for measurement and fit alike) is close to the exact one."""
+    table, model, params = metal
+    values = np.array([params[n] for n in model.names])
+    brdf = np.ascontiguousarray(table.brdf().T).T
+    p = plan(DEFAULT_LIGHTS, 40, 24)
+    fitted = Evaluator(p, model)([values])[0]
+    at_points, at_env = p.measured(brdf)
+    meas, fit = p.images(at_points, at_env), p.images(fitted.points, fitted.env)
+    for label, kind, d in DEFAULT_LIGHTS:
+        size = 24 if kind == "env" else 40
+        exact, looked_up = render_model_sphere(model, values, d, size, kind), render_table_sphere(brdf, d, size, kind)
+        assert np.array_equal(np.isnan(exact).all(-1), np.isnan(fit[label]).all(-1))
+        ok = np.isfinite(exact) & (exact > 1e-6)
+        rel = np.abs(fit[label][ok] / exact[ok] - 1)
+        if kind == "point":
+            assert rel.max() < 1e-9, label
+            np.testing.assert_allclose(meas[label], looked_up, rtol=1e-12, equal_nan=True)
+        else:
+            assert np.median(rel) < 0.02, (label, np.median(rel))
+    direct = slice_curves(brdf, model, values)
+    for key, cv in curves(p, at_points, fitted).items():
+        for k in cv:
+            np.testing.assert_allclose(cv[k], direct[key][k], rtol=1e-9, atol=1e-300, err_msg=f"{key} {k}")
+
+
+def test_engine_values_match_the_reference(metal):
+    from brdfcl.device.engine import Engine
+    table, model, params = metal
+    values = np.array([params[n] for n in model.names])
+    p = plan(DEFAULT_LIGHTS, 40, 24)
+    ref = Evaluator(p, model)([values])[0]
+    got = Evaluator(p, model, Engine(model))([values, values])
+    for f in got:
+        np.testing.assert_allclose(f.points, ref.points, rtol=2e-5)
+        np.testing.assert_allclose(f.env, ref.env, rtol=2e-5)
+        for k in ref.lobes:
+            np.testing.assert_allclose(f.lobes[k], ref.lobes[k], rtol=2e-5, atol=1e-30)
+
+
+def test_thinned_lines_stay_within_the_tolerance():
+    x = np.linspace(0, 300, 721)
+    y = 100 + 60 * np.sin(x / 17.0) + 40 * np.exp(-((x - 150) / 2.0) ** 2)
+    keep = _thin(x, y)
+    assert keep[0] == 0 and keep[-1] == x.size - 1 and keep.size < x.size / 2
+    seg = np.searchsorted(keep, np.arange(x.size), side="right") - 1       # the kept chord over each point
+    a, b = keep[np.minimum(seg, keep.size - 2)], keep[np.minimum(seg + 1, keep.size - 1)]
+    dx, dy = x[b] - x[a], y[b] - y[a]
+    dist = np.abs(dx * (y - y[a]) - dy * (x - x[a])) / np.hypot(dx, dy)
+    assert dist.max() < TOLERANCE_PX
 
 
 def test_lobes_add_up(metal):

@@ -1,6 +1,6 @@
 """Slice plots of a fit against its measured table: BRDF x cos(theta_o) against the outgoing
 angle, for several incidence angles, per channel, on a log scale; and the fitted model's lobes
-one by one on the in-plane slice.  Cartesian or polar (matplotlib, Agg).
+one by one on the in-plane slice (SVG, brdfcl.report.view.svgplot).
 
 Convention: the light comes from azimuth phi_i = 0 at theta_i.  In the plane of incidence the
 outgoing angle is signed: theta_o < 0 on the light's side (theta_o = -theta_i is back towards
@@ -14,18 +14,19 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-from matplotlib.ticker import NullLocator
-
 from brdfcl.data.merl import MerlTable
 from brdfcl.model.lobes.cells import Cells
 from brdfcl.report.view.lookup import table_lookup
-from brdfcl.report.view.sphere import as_model, save_figure
+from brdfcl.report.files import atomic_write_text
+from brdfcl.report.view.sphere import as_model
+from brdfcl.report.view.svgplot import Figure
 
 INCIDENCE_DEG = (0.0, 30.0, 60.0, 75.0)
-PLANES = ((None, "in the plane of incidence"), (90.0, r"$\phi_o - \phi_i$ = 90 deg"),
-          (135.0, r"$\phi_o - \phi_i$ = 135 deg"))
-LOBE_STYLE = {"diffuse": ("diffuse", "tab:orange"), "diffraction": ("diffraction", "tab:purple"),
-              "reflection": ("Cook-Torrance", "tab:blue")}
+PLANES = ((None, "in the plane of incidence"), (90.0, "\u03c6o \u2212 \u03c6i = 90 deg"),
+          (135.0, "\u03c6o \u2212 \u03c6i = 135 deg"))
+INCIDENCE_COLORS = ("#440154", "#375b8d", "#1fa188", "#9bd93c")     # viridis, 0 .. 0.85
+LOBE_STYLE = {"diffuse": ("diffuse", "#ff7f0e"), "diffraction": ("diffraction", "#9467bd"),
+              "reflection": ("Cook-Torrance", "#1f77b4")}
 """Label and colour of a lobe, by role (brdfcl.model.lobes.lobe.ROLES)."""
 
 
@@ -38,8 +39,11 @@ def lobe_style(model, lobe):
         label = f"{label} ({lobe.prefix})"
         color = color if lobe is same[0] else None
     return label, color
+OTHER_LOBES = ("#8c564b", "#e377c2", "#17becf", "#bcbd22")     # lobes of a role already coloured
 CHANNELS = ("R", "G", "B")
-_POLAR = r" (polar: angle $\theta_o$ from the normal, up; radius log)"
+MEASURED, GREY = "#737373", "#999999"
+THETA_O = "\u03b8o (deg)"
+Y_LABEL = "BRDF \u00d7 cos \u03b8o (1/sr)"
 DECADES = 9                       # y range: the largest value down to this many decades
 
 
@@ -76,137 +80,97 @@ def slice_values(table, model, values, theta_i_deg, theta_o_deg, dphi_deg=None, 
     return out
 
 
-def _axes(plt, rows, cols, polar, size):
-    kw = {"subplot_kw": {"projection": "polar"}} if polar else {"sharex": "row", "sharey": "row"}
-    fig, axes = plt.subplots(rows, cols, figsize=size, squeeze=False, constrained_layout=True, **kw)
-    for ax in axes.ravel():
-        if polar:                 # the normal up, positive theta_o to the right, radius log
-            ax.set_theta_zero_location("N")
-            ax.set_theta_direction(-1)
-            ax.set_thetamin(-90)
-            ax.set_thetamax(90)
-            ax.set_rscale("log")
-        else:
-            ax.set_yscale("log")
-            ax.grid(True, which="major", color="0.9", lw=0.6)
-        ax.yaxis.set_minor_locator(NullLocator())       # a grid line per decade reads best (and fast)
-    return fig, axes
+def slice_curves(table, model, values):
+    """{(dphi, theta_i): {"theta_o", "measured", "fitted", and per lobe on the in-plane slices}}
+    of every slice the figures show, from `slice_values`."""
+    out = {}
+    for dphi, _ in PLANES:
+        to = outgoing_deg(dphi)
+        for ti in INCIDENCE_DEG:
+            out[dphi, ti] = {"theta_o": to, **slice_values(table, model, values, ti, to, dphi, lobes=dphi is None)}
+    return out
 
 
-def _plot(ax, polar, x_deg, y, *fmt, **kw):
-    return ax.plot(np.radians(x_deg) if polar else x_deg, y, *fmt, **kw)
-
-
-def _limits(axes, polar, curves, dphi):
+def _limits(curves):
     """One value range for a row of panels: from the top of every curve down to where the
     lowest quarter of the weakest curve starts (so that every lobe shows), at most DECADES."""
     pos = [c[np.isfinite(c) & (c > 0)] for c in (np.ravel(a) for a in curves)]
     pos = [c for c in pos if c.size]
     hi = 2 * max(c.max() for c in pos) if pos else 1.0
     lo = max(min(np.percentile(c, 25) for c in pos) / 3 if pos else 1e-3, hi * 10.0 ** -DECADES)
-    for ax in axes:
-        if polar:                 # radius labels every second decade, between the -45 deg spokes
-            ax.set_rlim(lo, hi)
-            ax.set_yticks(10.0 ** np.arange(np.ceil(np.log10(lo)), np.log10(hi), 2))
-            ax.set_rlabel_position(-52.5 if dphi is None else 37.5)
-            ax.tick_params(axis="y", labelsize=7)
-        else:
-            ax.set_ylim(lo, hi)
-            ax.set_xlim(-90 if dphi is None else 0, 90)
-            ax.set_xticks(np.arange(-90 if dphi is None else 0, 91, 30))
+    return lo, hi
 
 
-def _light(ax, polar, theta_i, color):
-    """A triangle on the rim at -theta_i: where the light comes from."""
-    ax.plot([np.radians(-theta_i) if polar else -theta_i], [1.0], "v", color=color, ms=7, clip_on=False,
-            transform=ax.get_xaxis_transform(), mec="k", mew=0.5)
-
-
-def _measured(ax, polar, x, y, color, **kw):
+def _measured(panel, x, y, color):
     """Measured values: a wide translucent band with hollow markers every 3 deg."""
-    _plot(ax, polar, x, y, color=color, lw=4, alpha=0.3)
-    _plot(ax, polar, x[::12], y[::12], "o", color=color, ms=3.5, mfc="none", **kw)
+    panel.line(x, y, color, width=4, opacity=0.3)
+    panel.markers(x[::12], y[::12], color)
 
 
-def figure_slices(path, name, table, model, values, polar=False):
+def _ticks(dphi):
+    return tuple(range(-90 if dphi is None else 0, 91, 30))
+
+
+def slices_svg(name, spec, curves) -> str:
     """Rows: the in-plane and out-of-plane slices; columns: R, G, B; one colour per theta_i."""
-    import matplotlib.pyplot as plt
-    fig, axes = _axes(plt, len(PLANES), 3, polar, (15, 8.5) if polar else (14, 11))
-    colors = plt.get_cmap("viridis")(np.linspace(0.0, 0.85, len(INCIDENCE_DEG)))
+    fig = Figure(len(PLANES), 3, title=[
+        f"{name}: BRDF \u00d7 cos \u03b8o against the outgoing angle, measured against fitted",
+        "(\u03b8o < 0: the light's side; \u03b8o = \u03b8i: the mirror direction)"])
     for row, (dphi, title) in enumerate(PLANES):
-        to = outgoing_deg(dphi)
-        curves = [slice_values(table, model, values, ti, to, dphi) for ti in INCIDENCE_DEG]
+        row_curves = [curves[dphi, ti] for ti in INCIDENCE_DEG]
+        y_range = _limits([cv[k] for cv in row_curves for k in ("measured", "fitted")])
         for c in range(3):
-            ax = axes[row, c]
-            for ti, col, cv in zip(INCIDENCE_DEG, colors, curves):
+            p = fig.panel(row, c, x_range=(-90 if dphi is None else 0, 90), y_range=y_range,
+                          title=f"{CHANNELS[c]}, {title}", xticks=_ticks(dphi), ylabel=Y_LABEL if c == 0 else "",
+                          xlabel=THETA_O + ("" if dphi is None else f" at \u03c6o \u2212 \u03c6i = {dphi:.0f} deg"))
+            for ti, col, cv in zip(INCIDENCE_DEG, INCIDENCE_COLORS, row_curves):
                 if dphi is None:
-                    _light(ax, polar, ti, col)
-                _measured(ax, polar, to, cv["measured"][c], col)
-                _plot(ax, polar, to, cv["fitted"][c], color=col, lw=1.2, label=rf"$\theta_i$ = {ti:.0f} deg")
-            ax.set_title(f"{CHANNELS[c]}, {title}", fontsize=10)
-            _label(ax, polar, dphi, c)
-        _limits(axes[row], polar, [cv[k] for cv in curves for k in cv], dphi)
-    handles, labels = axes[0, 0].get_legend_handles_labels()
-    handles += [plt.Line2D([], [], color="0.4", lw=4, alpha=0.3, marker="o", mfc="none", ms=3.5),
-                plt.Line2D([], [], color="0.4", lw=1.2),
-                plt.Line2D([], [], ls="none", marker="v", color="0.6", mec="k", mew=0.5, ms=7)]
-    labels += ["measured (table)", f"fitted: {model.spec}", r"light direction ($-\theta_i$, in plane)"]
-    fig.legend(handles, labels, loc="outside lower center", ncol=3, fontsize=9)
-    fig.suptitle(rf"{name}: BRDF $\times\cos\theta_o$ against the outgoing angle, measured against "
-                 rf"fitted{_POLAR if polar else ''}" "\n"
-                 r"($\theta_o < 0$: the light's side; $\theta_o = \theta_i$: the mirror direction)")
-    save_figure(fig, path)
+                    p.light(-ti, col)
+                _measured(p, cv["theta_o"], cv["measured"][c], col)
+                p.line(cv["theta_o"], cv["fitted"][c], col)
+    fig.legend = [(f"\u03b8i = {ti:.0f} deg", "line", col) for ti, col in zip(INCIDENCE_DEG, INCIDENCE_COLORS)]
+    fig.legend += [("measured (table)", "band", MEASURED), (f"fitted: {spec}", "line", "#555555"),
+                   ("light direction (\u2212\u03b8i, in plane)", "light", GREY)]
+    return fig.svg()
 
 
-def figure_lobes(path, name, table, model, values, polar=False):
+def lobes_svg(name, model, curves) -> str:
     """Rows: R, G, B; columns: theta_i; the fitted lobes separately on the in-plane slice."""
-    import matplotlib.pyplot as plt
-    cols = len(INCIDENCE_DEG)
-    fig, axes = _axes(plt, 3, cols, polar, (17, 7.5) if polar else (16, 10))
-    to = outgoing_deg()
-    curves = [slice_values(table, model, values, ti, to, lobes=True) for ti in INCIDENCE_DEG]
-    for col, (ti, cv) in enumerate(zip(INCIDENCE_DEG, curves)):
-        for c in range(3):
-            ax = axes[c, col]
-            _measured(ax, polar, to, cv["measured"][c], "0.45", label="measured (table)")
-            _plot(ax, polar, to, cv["fitted"][c], color="k", lw=1.2, label="fitted, all lobes")
-            for lb in model.lobes:
-                label, color = lobe_style(model, lb)
-                _plot(ax, polar, to, cv[lb.prefix][c], "--", color=color, lw=1.4, label=label)
-            ax.set_title(rf"{CHANNELS[c]}, $\theta_i$ = {ti:.0f} deg", fontsize=10)
-            _light(ax, polar, ti, "0.6")
-            _label(ax, polar, None, c if col == 0 else None)
+    fig = Figure(3, len(INCIDENCE_DEG), panel_size=(270, 180), title=[
+        f"{name}: the fitted lobes of {model.spec} one by one, in the plane of incidence",
+        "BRDF \u00d7 cos \u03b8o; \u03b8o < 0: the light's side"])
+    styles = [lobe_style(model, lb) for lb in model.lobes]
+    colors = [col or OTHER_LOBES[i % len(OTHER_LOBES)] for i, (_, col) in enumerate(styles)]
     for c in range(3):
-        _limits(axes[c], polar, [cv[k][c] for cv in curves for k in cv], None)
-    handles, labels = axes[0, 0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="outside lower center", ncol=len(labels), fontsize=9)
-    fig.suptitle(f"{name}: the fitted lobes of {model.spec} one by one, in the plane of incidence"
-                 rf"{_POLAR if polar else ''}" "\n"
-                 r"BRDF $\times\cos\theta_o$; $\theta_o < 0$: the light's side")
-    save_figure(fig, path)
+        row = [curves[None, ti] for ti in INCIDENCE_DEG]
+        y_range = _limits([cv[k][c] for cv in row for k in ["measured", "fitted"] + [lb.prefix for lb in model.lobes]])
+        for col, (ti, cv) in enumerate(zip(INCIDENCE_DEG, row)):
+            p = fig.panel(c, col, x_range=(-90, 90), y_range=y_range, xticks=_ticks(None), xlabel=THETA_O,
+                          title=f"{CHANNELS[c]}, \u03b8i = {ti:.0f} deg", ylabel=Y_LABEL if col == 0 else "")
+            _measured(p, cv["theta_o"], cv["measured"][c], MEASURED)
+            p.line(cv["theta_o"], cv["fitted"][c], "black")
+            for lb, color in zip(model.lobes, colors):
+                p.line(cv["theta_o"], cv[lb.prefix][c], color, width=1.4, dash="5,3")
+            p.light(-ti, GREY)
+    fig.legend = [("measured (table)", "band", MEASURED), ("fitted, all lobes", "line", "black")]
+    fig.legend += [(label, "dash", color) for (label, _), color in zip(styles, colors)]
+    return fig.svg()
 
 
-def _label(ax, polar, dphi, channel):
-    what = r"$\theta_o$ (deg)" + ("" if dphi is None else rf" at $\phi_o - \phi_i$ = {dphi:.0f} deg")
-    if polar:                     # the angles are written on the rim
-        return
-    ax.set_xlabel(what)
-    if channel is not None:
-        ax.set_ylabel(r"BRDF $\times\cos\theta_o$ (1/sr)")
-
-
-def write_slices(out_dir, name, table, model, values, polar=False):
-    """``NAME-slices.png`` and ``NAME-lobes.png`` (and ``-polar`` versions with ``polar``).
-    ``table``: a MerlTable or (3, N_CELLS) BRDF array; ``values``: a vector or {name: value}."""
-    import matplotlib
-    matplotlib.use("Agg")
+def write_slice_figures(out_dir, name, model, curves):
+    """``NAME-slices.svg`` and ``NAME-lobes.svg`` from ``curves`` (`slice_curves`' form)."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
+    paths = [out_dir / f"{name}-slices.svg", out_dir / f"{name}-lobes.svg"]
+    atomic_write_text(paths[0], slices_svg(name, model.spec, curves))
+    atomic_write_text(paths[1], lobes_svg(name, model, curves))
+    return paths
+
+
+def write_slices(out_dir, name, table, model, values):
+    """The slice figures (`write_slice_figures`) of a fit against its table, each value computed
+    here (the report takes them from brdfcl.report.view.views' plan instead).  ``table``: a
+    MerlTable or (3, N_CELLS) BRDF array; ``values``: a vector or {name: value}."""
     model, values = as_model(model, values)
     brdf = np.ascontiguousarray((table.brdf() if isinstance(table, MerlTable) else table).T).T
-    paths = []
-    for suffix, pol in (("", False), ("-polar", True)) if polar else (("", False),):
-        paths += [out_dir / f"{name}-slices{suffix}.png", out_dir / f"{name}-lobes{suffix}.png"]
-        figure_slices(paths[-2], name, brdf, model, values, pol)
-        figure_lobes(paths[-1], name, brdf, model, values, pol)
-    return paths
+    return write_slice_figures(out_dir, name, model, slice_curves(brdf, model, values))

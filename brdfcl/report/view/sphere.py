@@ -10,7 +10,10 @@ as sharp as alpha ~ 1e-3 are integrated as well as broad ones (a fixed set of li
 would show a sharp lobe as dots).  The BRDF is evaluated in each pixel's local frame (tangent
 from Duff et al.'s basis; brdfcl's lobes are isotropic), the model with its float64 reference,
 the table by trilinear lookup (of log values) in MERL's (theta_h, theta_d, phi_d) index space
-(brdfcl.report.view.lookup, which the slice plots use too).
+(brdfcl.report.view.lookup, which the slice plots use too): the exact renderings
+(``render_model_sphere``, ``render_table_sphere``).  The report takes the same pixels' values
+from its plan (brdfcl.report.view.views) and writes them with ``write_sphere_images``: PNG panels
+(Pillow) whose captions go to the page, and EXR layers.
 """
 from __future__ import annotations
 
@@ -29,7 +32,7 @@ CHUNK = 1 << 18                   # (pixel, sample) pairs evaluated at once
 SKY_ZENITH = np.array([0.35, 0.55, 1.0])
 SKY_HORIZON = np.array([1.0, 0.97, 0.9])
 GROUND = np.array([0.25, 0.22, 0.2])
-ENV_SIZE = 96                     # write_spheres: environment spheres at most this size (~2.5 s / 10^4 px)
+ENV_SIZE = 96                     # environment spheres at most this size (600 BRDF values a pixel)
 MIN_VALID_SHARE = 0.95            # table sphere in the environment: NaN below this share of light
 
 
@@ -173,70 +176,68 @@ def to_srgb(img, scale, background=0.18):
     return out
 
 
-def write_spheres(out_dir, name, table, model, values, lights=DEFAULT_LIGHTS, size=160, env_size=ENV_SIZE):
+def panels(images, scale, gap=4, background=0.18):
+    """sRGB uint8 image of ``images`` (each (n, n, 3), linear) side by side at one exposure."""
+    srgb = [to_srgb(img, scale, background) for img in images]
+    h = srgb[0].shape[0]
+    strip = np.full((h, gap, 3), 1.0)
+    out = [srgb[0]]
+    for img in srgb[1:]:
+        out += [strip, img]
+    return (np.concatenate(out, axis=1) * 255.0 + 0.5).astype(np.uint8)
+
+
+def write_png(path, rgb):
+    """Write a uint8 RGB image (h, w, 3) as PNG, atomically (a failed write: one line naming the path)."""
+    from PIL import Image
+    tmp = f"{path}.tmp.png"
+    with writing(path):
+        Image.fromarray(rgb).save(tmp, compress_level=3)
+        os.replace(tmp, path)
+
+
+def light_text(kind, d):
+    """What lights the sphere, in words."""
+    xyz = "({:.2f}, {:.2f}, {:.2f})".format(*d)
+    if kind == "env":
+        return f"sky/ground environment, zenith {xyz}"
+    return f"point light from {xyz}, {np.degrees(np.arccos(np.clip(d[2], -1, 1))):.0f} deg from the view"
+
+
+def sphere_caption(kind, d, meas, fit, spec, scale):
+    """The caption of a sphere image: what lights it, the exposure and the median difference."""
+    ok = np.isfinite(meas) & (meas > 0) & np.isfinite(fit)
+    rel = np.median(np.abs(fit[ok] - meas[ok]) / meas[ok]) if ok.any() else np.nan
+    unit = "x the sky's horizon" if kind == "env" else "/sr x unit irradiance"
+    return (f"measured (table) | fitted: {spec} | |fitted - measured| at the same exposure "
+            f"(median relative difference {100 * rel:.2g} %). {light_text(kind, d)}; camera: x right, y up, "
+            f"z towards the viewer; white = {1 / scale:.3g} {unit} (99th percentile of measured), sRGB; "
+            "magenta: missing.")
+
+
+def write_sphere_images(out_dir, name, spec, lights, measured, fitted, thumb):
     """Per light, ``NAME-sphere-LIGHT.png`` (measured | fitted | |difference|, one exposure from
     the measured image, sRGB) and ``NAME-sphere-LIGHT.exr`` (linear float32; layers measured.R/G/B,
     fitted.*: -1 outside the sphere and where missing; difference.* = fitted - measured, 0 there;
-    A: 1 on the sphere); and ``NAME-thumb.png``, measured | fitted at 96 px under the first light.
-    Environment spheres are rendered at most ``env_size`` pixels wide (they cost 600 BRDF values a pixel).
-    ``table``: a MerlTable or (3, N_CELLS) BRDF array; ``values``: a vector or {name: value}."""
+    A: 1 on the sphere); and ``NAME-thumb.png``, measured | fitted under the first light.
+    ``measured`` and ``fitted``: {label: radiance image}; ``thumb``: their label for the thumbnail.
+    Returns (paths, {png name: caption})."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    model, values = as_model(model, values)
-    brdf = np.ascontiguousarray((table.brdf() if isinstance(table, MerlTable) else table).T).T
-    paths = []
+    paths, captions = [], {}
     for label, kind, d in lights:
-        n = min(size, env_size) if kind == "env" else size
-        meas = render_table_sphere(brdf, d, n, kind)
-        fit = render_model_sphere(model, values, d, n, kind)
-        paths.append(out_dir / f"{name}-sphere-{label}.png")
-        _sphere_figure(paths[-1], f"{name}, {label}", kind, d, meas, fit, model.spec)
+        meas, fit = measured[label], fitted[label]
+        scale = exposure(meas)
+        png = out_dir / f"{name}-sphere-{label}.png"
+        write_png(png, panels([meas, fit, np.abs(fit - meas)], scale))
+        captions[png.name] = f"{name}, {label}: " + sphere_caption(kind, d, meas, fit, spec, scale)
         layers = {"A": np.isfinite(fit[..., 0]).astype(np.float32)}
         for layer, img in (("measured", meas), ("fitted", fit), ("difference", np.nan_to_num(fit - meas))):
             layers.update({f"{layer}.{c}": img[..., i] for i, c in enumerate("RGB")})
-        paths.append(out_dir / f"{name}-sphere-{label}.exr")
-        write_exr(paths[-1], layers)
-    _, kind, d = lights[0]
-    meas = render_table_sphere(brdf, d, 96, kind)
-    thumb = np.concatenate([meas, render_model_sphere(model, values, d, 96, kind)], axis=1)
+        exr = out_dir / f"{name}-sphere-{label}.exr"
+        write_exr(exr, layers)
+        paths += [png, exr]
     paths.append(out_dir / f"{name}-thumb.png")
-    with writing(paths[-1]):
-        _pyplot().imsave(paths[-1], to_srgb(thumb, exposure(meas)))
-    return paths
-
-
-def _sphere_figure(path, title, kind, d, meas, fit, spec):
-    plt = _pyplot()
-    diff, scale = fit - meas, exposure(meas)
-    ok = np.isfinite(meas) & (meas > 0)
-    rel = np.median(np.abs(diff[ok]) / meas[ok]) if ok.any() else np.nan
-    fig, axes = plt.subplots(1, 3, figsize=(9.6, 3.7), constrained_layout=True)
-    titles = ("measured (table)", f"fitted: {spec}",
-              f"|fitted - measured|, same exposure\n(median relative difference {100 * rel:.2g} %)")
-    for ax, img, text in zip(axes, (meas, fit, np.abs(diff)), titles):
-        ax.imshow(to_srgb(img, scale))
-        ax.set_title(text, fontsize=9 if len(text) < 40 else 7)
-        ax.set_axis_off()
-    xyz = "({:.2f}, {:.2f}, {:.2f})".format(*d)
-    what = (f"sky/ground environment, zenith {xyz}" if kind == "env" else
-            f"point light from {xyz}, {np.degrees(np.arccos(np.clip(d[2], -1, 1))):.0f} deg from the view")
-    unit = "x the sky's horizon" if kind == "env" else "/sr x unit irradiance"
-    fig.suptitle(f"{title}: {what} (camera: x right, y up, z towards the viewer)\nwhite = {1 / scale:.3g} "
-                 f"{unit} (99th percentile of measured), sRGB; magenta: missing", fontsize=9)
-    save_figure(fig, path)
-
-
-def _pyplot():
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    return plt
-
-
-def save_figure(fig, path, dpi=100):
-    """Write a matplotlib figure as PNG atomically (a failed write: one line naming the path)."""
-    tmp = f"{path}.tmp.png"
-    with writing(path):
-        fig.savefig(tmp, dpi=dpi)
-        os.replace(tmp, path)
-    _pyplot().close(fig)
+    meas = measured[thumb]
+    write_png(paths[-1], panels([meas, fitted[thumb]], exposure(meas), gap=0))
+    return paths, captions

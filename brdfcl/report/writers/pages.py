@@ -37,6 +37,6 @@ class ReportPages(Writer):
             if not entries:
                 return None
             title = f"brdfcl analysis of {len(entries)} materials"
-        index = write_report(job.out, entries, read_merl, title=title)
+        index = write_report(job.out, entries, read_merl, title=title, engine=job.engine)
         job.log(f"report: {index}")
         return index

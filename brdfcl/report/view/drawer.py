@@ -1,0 +1,131 @@
+"""Worker processes that draw report images: ``python -m brdfcl.report.view.drawer``.
+
+Drawing a material's images is Python and numpy under the GIL, so a report of many materials
+draws them in one process per CPU.  The workers are plain child processes of the interpreter
+(not multiprocessing's spawn, which would run the caller's main script again in each one): each
+reads ``(function, arguments)`` pickles on its standard input and answers each with its result,
+or the exception it raised, on its standard output; it ends at the end of its input.
+"""
+from __future__ import annotations
+
+import os
+import pickle
+import queue
+import struct
+import subprocess
+import sys
+import threading
+from concurrent.futures import Future
+
+_HEAD = struct.Struct("<Q")
+
+
+def _send(stream, obj) -> None:
+    data = pickle.dumps(obj, protocol=pickle.HIGHEST_PROTOCOL)
+    stream.write(_HEAD.pack(len(data)))
+    stream.write(data)
+    stream.flush()
+
+
+def _receive(stream):
+    head = stream.read(_HEAD.size)
+    if len(head) < _HEAD.size:
+        raise EOFError
+    data = stream.read(_HEAD.unpack(head)[0])
+    return pickle.loads(data)
+
+
+class InProcess:
+    """The pool's interface, each call run here at once."""
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
+
+    def submit(self, fn, *args) -> Future:
+        f: Future = Future()
+        f.set_result(fn(*args))
+        return f
+
+
+class Drawers:
+    """``n`` worker processes; `submit` sends a call to the one with the fewest pending and
+    returns a Future of its result (the worker's exception re-raised; a worker that died: a
+    RuntimeError of one line)."""
+
+    def __init__(self, n: int):
+        env = dict(os.environ, PYTHONUNBUFFERED="1")
+        self._procs = [subprocess.Popen([sys.executable, "-m", __name__], stdin=subprocess.PIPE,
+                                        stdout=subprocess.PIPE, env=env) for _ in range(n)]
+        self._pending = [queue.Queue() for _ in self._procs]
+        self._counts = [0] * n
+        self._lock = threading.Lock()
+        self._readers = [threading.Thread(target=self._read, args=(k,), daemon=True) for k in range(n)]
+        for t in self._readers:
+            t.start()
+
+    def _read(self, k):
+        proc, pending = self._procs[k], self._pending[k]
+        while True:
+            f = pending.get()
+            if f is None:
+                return
+            try:
+                status, value = _receive(proc.stdout)
+            except (EOFError, OSError, pickle.UnpicklingError):
+                f.set_exception(RuntimeError(f"report: an image worker ended (exit status {proc.wait()})"))
+                continue
+            with self._lock:
+                self._counts[k] -= 1
+            (f.set_result if status == "ok" else f.set_exception)(value)
+
+    def submit(self, fn, *args) -> Future:
+        with self._lock:
+            k = min(range(len(self._procs)), key=self._counts.__getitem__)
+            self._counts[k] += 1
+        f: Future = Future()
+        self._pending[k].put(f)
+        try:
+            _send(self._procs[k].stdin, (fn, args))
+        except OSError:
+            pass                          # the reader reports the dead worker on this future
+        return f
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        for proc, pending in zip(self._procs, self._pending):
+            pending.put(None)
+            try:
+                proc.stdin.close()
+            except OSError:
+                pass
+        for proc, t in zip(self._procs, self._readers):
+            t.join()
+            proc.wait()
+        return False
+
+
+def main() -> None:
+    stdin, stdout = sys.stdin.buffer, sys.stdout.buffer
+    sys.stdout = sys.stderr               # a stray print must not break the answers
+    while True:
+        try:
+            fn, args = _receive(stdin)
+        except EOFError:
+            return
+        try:
+            answer = ("ok", fn(*args))
+        except Exception as e:            # sent back, raised in the caller
+            answer = ("error", e)
+        try:
+            _send(stdout, answer)
+        except (pickle.PicklingError, TypeError, AttributeError) as e:
+            _send(stdout, ("error", RuntimeError(f"report: {answer[1]!r:.300} ({e})")))
+
+
+if __name__ == "__main__":
+    main()
