@@ -11,8 +11,8 @@ from brdfcl.data.merl import read_merl
 from brdfcl.model.compose import Model
 from brdfcl.model.lobes.cells import Cells
 from brdfcl.report.view import sphere
-from brdfcl.report.view.lookup import rusinkiewicz, table_lookup
 from brdfcl.report.view.evaluate import Evaluator
+from brdfcl.report.view.lookup import rusinkiewicz, table_lookup
 from brdfcl.report.view.material import curves, write_images
 from brdfcl.report.view.slices import slice_curves, slice_directions, slice_values, write_slices
 from brdfcl.report.view.sphere import DEFAULT_LIGHTS, render_model_sphere, render_table_sphere, sphere_normals

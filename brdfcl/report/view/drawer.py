@@ -59,7 +59,7 @@ class Drawers:
         env = dict(os.environ, PYTHONUNBUFFERED="1")
         self._procs = [subprocess.Popen([sys.executable, "-m", __name__], stdin=subprocess.PIPE,
                                         stdout=subprocess.PIPE, env=env) for _ in range(n)]
-        self._pending = [queue.Queue() for _ in self._procs]
+        self._pending: list[queue.Queue] = [queue.Queue() for _ in self._procs]
         self._counts = [0] * n
         self._lock = threading.Lock()
         self._readers = [threading.Thread(target=self._read, args=(k,), daemon=True) for k in range(n)]

@@ -36,7 +36,7 @@ def write_material(out_dir, name, brdf, model, fitted: Fitted, plan):
     measured = plan.images(at_points, at_env)
     fit = plan.images(fitted.points, fitted.env)
     lights = [(v.label, v.kind, v.light) for v in plan.spheres]
-    paths, captions = write_sphere_images(out_dir, name, model.spec, lights, measured, fit, plan.thumb.label)
+    paths, captions = write_sphere_images(out_dir, name, model.spec, lights, measured, fit)
     return paths + write_slice_figures(out_dir, name, model, curves(plan, at_points, fitted)), captions
 
 

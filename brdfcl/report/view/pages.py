@@ -6,33 +6,21 @@ header; ``OUT/report/NAME.html`` shows one material at a readable size: paramete
 standard errors, directional albedo, flags, lit spheres (measured | fitted | difference),
 slices and the analysis figures where there are some.  Plain files that work offline: no
 script or style from elsewhere.  `brdfcl fit-all` and `brdfcl analyze` both write it (through
-brdfcl.report.writers.pages).  About 270 lines, one module: the two pages share their table
-cells, number formats and file writing, and nothing else uses them.
+brdfcl.report.writers.pages); the images come from brdfcl.report.view.images.  The two pages
+share their table cells, number formats and file writing, and nothing else uses them.
 """
 from __future__ import annotations
 
 import html
-import json
-import logging
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import numpy as np
-
 from brdfcl.data.inputs import is_table
-from brdfcl.device.errors import DeviceError, ProgramError
 from brdfcl.model.compose import Model
 from brdfcl.optim.selection import PENALTY
 from brdfcl.report.files import writing
-from brdfcl.report.view.drawer import Drawers, InProcess
-from brdfcl.report.view.evaluate import CHUNK, Evaluator
-from brdfcl.report.view.material import write_material
-from brdfcl.report.view.sphere import DEFAULT_LIGHTS
-from brdfcl.report.view.views import plan as view_plan
-
-_log = logging.getLogger("brdfcl")
-DRAW_PROCESSES = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+from brdfcl.report.view.images import draw_images
 
 METRICS = ("rmse_log", "rmse_l2", "rmse_cbrt", "rel_rmse")    # first, in this order; then any other
 
@@ -44,9 +32,6 @@ def error_columns(entries) -> list[str]:
     for e in entries:
         cols += [k for k in e.errors if k not in cols]
     return cols
-# key, grazing and environment light
-REPORT_LIGHTS = tuple(light for light in DEFAULT_LIGHTS if light[0] in ("key", "grazing", "env"))
-PLAN = (REPORT_LIGHTS, 128, 64)   # brdfcl.report.view.views.plan: lights, sphere size, environment size
 STYLE = """body{font-family:sans-serif;margin:1em auto;max-width:1400px;color:#222}
 table{border-collapse:collapse}td,th{border:1px solid #ccc;padding:3px 6px;font-size:13px;text-align:right}
 th{background:#f3f3f3;cursor:pointer;vertical-align:bottom}td.l,th.l{text-align:left}
@@ -124,116 +109,6 @@ def write_report(out, entries, read_table, title="brdfcl fits", log=None, engine
             log(f"report: {e.name}")
     _write(rep / "index.html", comparison_page(entries, title, rep))
     return rep / "index.html"
-
-
-def _key(e):
-    return f"{e.model}|{sorted(e.params.items())}|{os.path.getmtime(e.table)}"
-
-
-def draw_images(rep, entries, read_table, engine=None) -> dict:
-    """{name: images} of every entry with a measurement: kept in ``rep/NAME/`` when newer than
-    its table and fit, else drawn, the fits of one model evaluated together (CHUNK at a time)."""
-    out, todo = {}, {}
-    for e in entries:
-        if e.table is None or not os.path.exists(e.table):
-            continue
-        stamp = _stamp(rep / e.name)
-        if stamp.get("key") == _key(e):
-            out[e.name] = _existing(rep / e.name, e.name, stamp)
-        elif not is_table(e.table):
-            out[e.name] = _sample_images(rep / e.name, e)
-        else:
-            todo.setdefault(e.model, []).append(e)
-    if not todo:
-        return out
-    plan = view_plan(*PLAN)
-    with _pool(sum(len(g) for g in todo.values())) as pool:
-        drawn = []
-        for spec, group in todo.items():
-            model = Model(spec)
-            evaluate = Evaluator(plan, model, _engine(engine, model))
-            for first in range(0, len(group), CHUNK):
-                part = group[first:first + CHUNK]
-                fitted = evaluate([[e.params[n] for n in model.names] for e in part])
-                drawn += [pool.submit(_draw, rep, e.name, e.table, _key(e), spec, f, read_table)
-                          for e, f in zip(part, fitted)]
-        out.update(f.result() for f in drawn)
-    return out
-
-
-def _pool(n):
-    """Where the images are drawn: a process per CPU for a report of several materials (drawing
-    holds the GIL), this process for a few."""
-    return Drawers(DRAW_PROCESSES) if n >= 2 * DRAW_PROCESSES and DRAW_PROCESSES > 1 else InProcess()
-
-
-def _draw(rep, name, table, key, spec, fitted, read_table):
-    """One material's images (brdfcl.report.view.material) and their stamp: (name, images)."""
-    model, plan = Model(spec), view_plan(*PLAN)
-    brdf = np.ascontiguousarray(read_table(table).brdf().T).T
-    paths, captions = write_material(rep / name, name, brdf, model, fitted, plan)
-    _write_stamp(rep / name, key, captions)
-    return name, _classify(paths, name, captions)
-
-
-def _engine(engine, model):
-    """A compiled Engine of ``model``: the run's (``engine(spec)``), else the default device's;
-    None where no device builds it (a one-line warning)."""
-    try:
-        if engine is not None:
-            return engine(model.spec)
-        from brdfcl.device.engine import Engine
-        return Engine(model)
-    except (DeviceError, ProgramError) as e:
-        _log.warning(f"brdfcl: report images of {model.spec} with the float64 reference: {e}")
-        return None
-
-
-def _sample_images(d, e) -> dict:
-    """Scattered samples: measured against fitted in the plane of incidence (no spheres or
-    slices: those need a table)."""
-    from brdfcl.data.readers import read_samples
-    from brdfcl.report.sample_figures import figure_in_plane
-    samples, model = read_samples(e.table), e.fitted_model()
-    if samples.n_channels != model.n_channels:      # a spectral file fitted as RGB (fit-all --rgb)
-        try:
-            from brdfcl.data.rgb import to_rgb
-            samples = to_rgb(samples)
-        except (ImportError, ValueError):
-            return {}
-    if samples.n_channels != model.n_channels:
-        return {}
-    d.mkdir(parents=True, exist_ok=True)
-    path = d / f"{e.name}-in-plane-slices.png"
-    figure_in_plane(samples, model, e.params, path)
-    _write_stamp(d, _key(e), {})
-    return _classify([path], e.name)
-
-
-def _stamp(d) -> dict:
-    """What ``d/.stamp`` says the images there show: {"key": fit and table, "captions"}."""
-    try:
-        stamp = json.loads((d / ".stamp").read_text())
-    except (OSError, ValueError):
-        return {}
-    return stamp if isinstance(stamp, dict) else {}
-
-
-def _write_stamp(d, key, captions):
-    (d / ".stamp").write_text(json.dumps({"key": key, "captions": captions}))
-
-
-def _existing(d, name, stamp):
-    return _classify(sorted(d.iterdir()), name, stamp.get("captions") or {})
-
-
-def _classify(paths, name, captions=None):
-    images = [Path(p) for p in paths if str(p).endswith((".png", ".svg"))]
-    return {"thumb": [p for p in images if p.name == f"{name}-thumb.png"],
-            "spheres": [p for p in images if "-sphere-" in p.name],
-            "slices": [p for p in images if p.name.endswith(("-slices.svg", "-lobes.svg", "-slices.png"))],
-            "exr": [Path(p) for p in paths if str(p).endswith(".exr")],
-            "captions": captions or {}}
 
 
 def _groups(params):

@@ -14,10 +14,11 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+
 from brdfcl.data.merl import MerlTable
 from brdfcl.model.lobes.cells import Cells
-from brdfcl.report.view.lookup import table_lookup
 from brdfcl.report.files import atomic_write_text
+from brdfcl.report.view.lookup import table_lookup
 from brdfcl.report.view.sphere import as_model
 from brdfcl.report.view.svgplot import Figure
 

@@ -32,6 +32,7 @@ CHUNK = 1 << 18                   # (pixel, sample) pairs evaluated at once
 SKY_ZENITH = np.array([0.35, 0.55, 1.0])
 SKY_HORIZON = np.array([1.0, 0.97, 0.9])
 GROUND = np.array([0.25, 0.22, 0.2])
+THUMB_SIZE = 96                   # the thumbnail's spheres (pixels)
 ENV_SIZE = 96                     # environment spheres at most this size (600 BRDF values a pixel)
 MIN_VALID_SHARE = 0.95            # table sphere in the environment: NaN below this share of light
 
@@ -169,7 +170,7 @@ def exposure(img):
 def to_srgb(img, scale, background=0.18):
     """Display image: ``img * scale`` clipped to [0, 1], sRGB transfer function; outside the
     sphere (NaN in every channel) grey, missing measurements magenta."""
-    x = np.clip(np.nan_to_num(img * scale, nan=0.0), 0.0, 1.0)
+    x = np.clip(np.nan_to_num(img * scale, nan=0.0), 0.0, 1.0).astype(np.float32)
     out = np.where(x <= 0.0031308, 12.92 * x, 1.055 * x ** (1 / 2.4) - 0.055)
     out[np.isnan(img).any(-1)] = (1.0, 0.0, 1.0)
     out[np.isnan(img).all(-1)] = background
@@ -187,12 +188,16 @@ def panels(images, scale, gap=4, background=0.18):
     return (np.concatenate(out, axis=1) * 255.0 + 0.5).astype(np.uint8)
 
 
-def write_png(path, rgb):
-    """Write a uint8 RGB image (h, w, 3) as PNG, atomically (a failed write: one line naming the path)."""
+def write_png(path, rgb, size=None):
+    """Write a uint8 RGB image (h, w, 3) as PNG, resampled to ``size`` (w, h) where given,
+    atomically (a failed write: one line naming the path)."""
     from PIL import Image
+    image = Image.fromarray(rgb)
+    if size is not None:
+        image = image.resize(size, Image.Resampling.BOX)
     tmp = f"{path}.tmp.png"
     with writing(path):
-        Image.fromarray(rgb).save(tmp, compress_level=3)
+        image.save(tmp, compress_level=1)
         os.replace(tmp, path)
 
 
@@ -215,12 +220,12 @@ def sphere_caption(kind, d, meas, fit, spec, scale):
             "magenta: missing.")
 
 
-def write_sphere_images(out_dir, name, spec, lights, measured, fitted, thumb):
+def write_sphere_images(out_dir, name, spec, lights, measured, fitted):
     """Per light, ``NAME-sphere-LIGHT.png`` (measured | fitted | |difference|, one exposure from
     the measured image, sRGB) and ``NAME-sphere-LIGHT.exr`` (linear float32; layers measured.R/G/B,
     fitted.*: -1 outside the sphere and where missing; difference.* = fitted - measured, 0 there;
-    A: 1 on the sphere); and ``NAME-thumb.png``, measured | fitted under the first light.
-    ``measured`` and ``fitted``: {label: radiance image}; ``thumb``: their label for the thumbnail.
+    A: 1 on the sphere); and ``NAME-thumb.png``, measured | fitted under the first light at
+    THUMB_SIZE.  ``measured`` and ``fitted``: {label: radiance image}.
     Returns (paths, {png name: caption})."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -235,9 +240,9 @@ def write_sphere_images(out_dir, name, spec, lights, measured, fitted, thumb):
         for layer, img in (("measured", meas), ("fitted", fit), ("difference", np.nan_to_num(fit - meas))):
             layers.update({f"{layer}.{c}": img[..., i] for i, c in enumerate("RGB")})
         exr = out_dir / f"{name}-sphere-{label}.exr"
-        write_exr(exr, layers)
+        write_exr(exr, layers, compression="rle")
         paths += [png, exr]
     paths.append(out_dir / f"{name}-thumb.png")
-    meas = measured[thumb]
-    write_png(paths[-1], panels([meas, fitted[thumb]], exposure(meas), gap=0))
+    meas = measured[lights[0][0]]
+    write_png(paths[-1], panels([meas, fitted[lights[0][0]]], exposure(meas), gap=0), (2 * THUMB_SIZE, THUMB_SIZE))
     return paths, captions

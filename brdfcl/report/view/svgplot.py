@@ -150,13 +150,13 @@ def _panel(p, x0, y0, w, h):
     out.append(f"<g clip-path='url(#{clip})'>")
     lights = []
     for item in p.items:
-        if item[0] == "line":
+        if item[0] == "line":               # in tenths of a pixel: integers are quick to write
             _, x, y, color, width, opacity, dash = item
             extra = (f" stroke-opacity='{opacity}'" if opacity < 1 else "") + \
-                (f" stroke-dasharray='{dash}'" if dash else "")
+                (f" stroke-dasharray='{','.join(str(10 * float(v)) for v in dash.split(','))}'" if dash else "")
             for d in _paths(px(x), py(y), np.isfinite(y) & (y > 0)):
-                out.append(f"<path d='{d}' fill='none' stroke='{color}' stroke-width='{width}'"
-                           f" stroke-linejoin='round'{extra}/>")
+                out.append(f"<path transform='scale(0.1)' d='{d}' fill='none' stroke='{color}' "
+                           f"stroke-width='{10 * width:g}' stroke-linejoin='round'{extra}/>")
         elif item[0] == "markers":
             _, x, y, color, r = item
             ok = np.isfinite(y) & (y > 0)
@@ -183,8 +183,8 @@ def _paths(x, y, ok):
         if b - a < 2:
             continue
         keep = _thin(x[a:b], y[a:b])
-        xs, ys = np.round(x[a:b][keep], 1), np.round(y[a:b][keep], 1)
-        out.append("M" + "L".join(f"{u:g},{v:g}" for u, v in zip(xs.tolist(), ys.tolist())))
+        xy = np.rint(np.stack([x[a:b][keep], y[a:b][keep]], -1) * 10).astype(np.int64)
+        out.append("M" + " ".join(map(str, xy.ravel().tolist())))     # pairs after M: lines
     return out
 
 

@@ -40,7 +40,6 @@ from brdfcl.report.view import sphere
 from brdfcl.report.view.lookup import corners, interpolate, nearest_cells
 from brdfcl.report.view.slices import INCIDENCE_DEG, PLANES, outgoing_deg, slice_directions
 
-THUMB_SIZE = 96
 ENV_STRIDE = (1, 2, 2)            # the environment's table: every theta_h bin, every 2nd theta_d and phi_d
 GRAZING_LOG_RATIO = np.log(1.5)   # a sample whose bin centre's cos theta_i or _o is off by more: left out
 
@@ -115,15 +114,13 @@ class SliceView:
 
 class Plan:
     """The report's views (see the module's docstring): ``spheres`` (key, grazing, environment
-    at the sizes given), the ``thumb`` (the first light at THUMB_SIZE), the ``slices``; ``cells``
+    at the sizes given) and the ``slices``; ``cells``
     holds every point view's and slice's direction pairs in order, ``in_plane`` the span of the
     in-plane slices (where the lobes are drawn one by one)."""
 
     def __init__(self, lights, size, env_size):
         wi_all, wo_all, spheres, n = [], [], [], 0
         views = [(label, kind, d, min(size, env_size) if kind == "env" else size) for label, kind, d in lights]
-        label, kind, d = lights[0]
-        views.append(("thumb", kind, d, THUMB_SIZE))
         for label, kind, d, s in views:
             if kind == "env":
                 spheres.append(_env_view(label, d, s))
@@ -133,7 +130,6 @@ class Plan:
             wi_all.append(wi)
             wo_all.append(wo)
             n += len(wi)
-        self.thumb = spheres.pop()
         self.spheres = spheres
         self.slices = []
         first = n
@@ -165,10 +161,9 @@ class Plan:
         return values[:, view.columns]
 
     def images(self, at_points, at_env):
-        """{label: radiance image} of every sphere and the thumb, from values at ``cells`` and at
-        ``env_cells``."""
+        """{label: radiance image} of every sphere, from values at ``cells`` and at ``env_cells``."""
         out = {}
-        for v in self.spheres + [self.thumb]:
+        for v in self.spheres:
             out[v.label] = v.image(at_points) if isinstance(v, PointView) else v.image(self.env_values(v, at_env))
         return out
 
