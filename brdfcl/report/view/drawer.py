@@ -11,6 +11,7 @@ from __future__ import annotations
 import os
 import pickle
 import queue
+import signal
 import struct
 import subprocess
 import sys
@@ -96,13 +97,15 @@ class Drawers:
     def __enter__(self):
         return self
 
-    def __exit__(self, *exc):
+    def __exit__(self, kind, value, tb):
         for proc, pending in zip(self._procs, self._pending):
             pending.put(None)
             try:
                 proc.stdin.close()
             except OSError:
                 pass
+            if kind is not None:          # interrupted or failed: what is queued is not wanted
+                proc.kill()
         for proc, t in zip(self._procs, self._readers):
             t.join()
             proc.wait()
@@ -110,6 +113,7 @@ class Drawers:
 
 
 def main() -> None:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)     # Ctrl-C is the caller's to handle
     stdin, stdout = sys.stdin.buffer, sys.stdout.buffer
     sys.stdout = sys.stderr               # a stray print must not break the answers
     while True:

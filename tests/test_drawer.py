@@ -1,0 +1,36 @@
+"""The report's image workers (brdfcl.report.view.drawer): plain child processes that answer
+calls in order, raise their errors in the caller and end with their input."""
+import os
+
+import pytest
+
+from brdfcl.report.view.drawer import Drawers, InProcess
+
+
+def test_results_come_back_in_order_from_every_worker():
+    with Drawers(2) as pool:
+        futures = [pool.submit(os.path.join, "a", str(i)) for i in range(9)]
+        assert [f.result(timeout=60) for f in futures] == [os.path.join("a", str(i)) for i in range(9)]
+    assert all(p.returncode == 0 for p in pool._procs)
+
+
+def test_an_error_is_raised_in_the_caller_and_the_workers_go_on(tmp_path):
+    with Drawers(2) as pool:
+        bad = pool.submit(os.stat, str(tmp_path / "missing"))
+        good = pool.submit(os.path.basename, "/x/y")
+        with pytest.raises(FileNotFoundError):
+            bad.result(timeout=60)
+        assert good.result(timeout=60) == "y"
+
+
+def test_leaving_on_an_error_stops_the_workers():
+    with pytest.raises(KeyboardInterrupt):
+        with Drawers(2) as pool:
+            pool.submit(os.getpid)
+            raise KeyboardInterrupt
+    assert all(p.returncode is not None for p in pool._procs)
+
+
+def test_in_process_runs_at_once():
+    with InProcess() as pool:
+        assert pool.submit(os.path.join, "a", "b").result() == os.path.join("a", "b")
