@@ -29,6 +29,7 @@ _log = logging.getLogger("brdfcl")
 # key, grazing and environment light
 REPORT_LIGHTS = tuple(light for light in DEFAULT_LIGHTS if light[0] in ("key", "grazing", "env"))
 PLAN = (REPORT_LIGHTS, 128, 64)   # brdfcl.report.view.views.plan: lights, sphere size, environment size
+PER_WORKER = 12                   # materials a worker process must have to be worth starting
 DRAW_PROCESSES = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
 
 
@@ -69,9 +70,10 @@ def draw_images(rep, entries, read_table, engine=None) -> dict:
 
 
 def _pool(n):
-    """Where the images are drawn: a process per CPU for a report of several materials (drawing
-    holds the GIL), this process for a few."""
-    return Drawers(DRAW_PROCESSES) if n >= 2 * DRAW_PROCESSES and DRAW_PROCESSES > 1 else InProcess()
+    """Where the images are drawn: a process per CPU for a report of many materials (drawing
+    holds the GIL; a worker costs about a second to start, some ten materials' drawing), this
+    process for fewer."""
+    return Drawers(DRAW_PROCESSES) if n >= PER_WORKER * DRAW_PROCESSES and DRAW_PROCESSES > 1 else InProcess()
 
 
 def _draw(rep, name, table, key, spec, fitted, read_table):
