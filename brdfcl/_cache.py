@@ -78,9 +78,13 @@ def generated(kind: str, key: str, make) -> str:
     return text
 
 
+KEEP_ARRAYS = 4                   # generated_arrays: the newest files kept of one kind
+
+
 def generated_arrays(kind: str, key: str, make) -> dict:
     """Arrays that depend only on the code, made once per machine: ``generated`` for a dict of
-    numpy arrays, kept as ``generated/KIND/KEY.npz`` (no pickled objects)."""
+    numpy arrays, kept as ``generated/KIND/KEY.npz`` (no pickled objects).  They can be large:
+    writing one removes all but the KEEP_ARRAYS newest of its kind (those of older code)."""
     import numpy as np
     path = cache_dir() / "generated" / kind / f"{key}.npz"
     try:
@@ -94,6 +98,10 @@ def generated_arrays(kind: str, key: str, make) -> dict:
         tmp = path.with_name(f".{path.name}.tmp{os.getpid()}.npz")
         np.savez(tmp, **arrays)
         os.replace(tmp, path)
+        others = [p for p in path.parent.glob("*.npz") if p != path]
+        older = sorted(others, key=lambda p: p.stat().st_mtime, reverse=True)[KEEP_ARRAYS - 1:]
+        for old in older:
+            old.unlink(missing_ok=True)
     except OSError:
         pass
     return arrays

@@ -67,3 +67,22 @@ def test_the_key_follows_the_terms_module(fresh, user_ndf):
     second = keys.formula_key(mine)
     keys.formula_key.cache_clear()
     assert first != second and keys.formula_key(REGISTRY["ndf"]["ggx"]) not in (first, second)
+
+
+def test_generated_arrays_are_made_once_and_pruned(tmp_path, monkeypatch):
+    import numpy as np
+
+    from brdfcl import _cache
+    monkeypatch.setenv("BRDFCL_CACHE_DIR", str(tmp_path))
+    calls = []
+
+    def make(i):
+        calls.append(i)
+        return {"a": np.arange(i + 1)}
+    for i in range(_cache.KEEP_ARRAYS + 2):
+        assert _cache.generated_arrays("t", f"k{i}", lambda i=i: make(i))["a"].size == i + 1
+    again = _cache.generated_arrays("t", f"k{_cache.KEEP_ARRAYS + 1}", lambda: make(-1))
+    assert again["a"].size == _cache.KEEP_ARRAYS + 2 and -1 not in calls
+    assert len(list((tmp_path / "generated" / "t").glob("*.npz"))) == _cache.KEEP_ARRAYS
+    (tmp_path / "generated" / "t" / "k9.npz").write_bytes(b"not a zip")
+    assert _cache.generated_arrays("t", "k9", lambda: {"a": np.zeros(2)})["a"].size == 2
