@@ -37,6 +37,8 @@ class ReportPages(Writer):
             if not entries:
                 return None
             title = f"brdfcl analysis of {len(entries)} materials"
+        job.log(f"report: the pages of {len(entries)} material{'s' if len(entries) != 1 else ''} "
+                f"(images drawn where a fit or table changed)")
         index = write_report(job.out, entries, read_merl, title=title, engine=job.engine)
         job.log(f"report: {index}")
         return index
