@@ -99,20 +99,45 @@ def half_vector_samples(n_log=40, n_lin=16, m_log=6, m_lin=24, theta_min=1e-5, t
     return np.concatenate(h), np.concatenate(w)
 
 
-def render_sphere(brdf, light_dir, size=128, light="point"):
-    """Radiance (size, size, 3) of the sphere for ``brdf(wi, wo) -> (3, n)`` (local frame, n = z)."""
-    light_dir = _unit(*light_dir)
+def pixel_frames(size):
+    """The sphere's pixels: the mask (size, size) of those on it and, for each of them, the normal
+    n, tangent t, bitangent b (m, 3) and the view direction in its local frame, wo (m, 3)."""
     normals, inside = sphere_normals(size)
     n = normals[inside]
     t, b = local_frame(n)
-    wo = np.stack([t[:, 2], b[:, 2], n[:, 2]], -1)                     # (0, 0, 1) in each frame
+    return inside, n, t, b, np.stack([t[:, 2], b[:, 2], n[:, 2]], -1)   # (0, 0, 1) in each frame
+
+
+def point_samples(n, t, b, light_dir):
+    """The pixels a point light from ``light_dir`` reaches: their indices, cos(theta_i) and the
+    light's direction in their local frames."""
+    cos = n @ light_dir
+    lit = np.flatnonzero(cos > 0)
+    return lit, cos[lit], np.stack([t[lit] @ light_dir, b[lit] @ light_dir, cos[lit]], -1)
+
+
+def env_samples(n, t, b, wo, zenith):
+    """The environment's samples of these pixels (half_vector_samples reflected about the view):
+    for each, its pixel's index, wi in the pixel's local frame and its weight (m, 3), the
+    solid-angle measure 4 (h.wo) cos(theta_i) d(omega_h) times the environment's radiance."""
+    hs, dw = half_vector_samples()
+    hw = wo @ hs.T                                                     # (P, K): h.wo = h.wi
+    wi = 2.0 * hw[..., None] * hs - wo[:, None, :]
+    pix, k = np.nonzero((hw > 0) & (wi[..., 2] > 0))
+    wi, hw = wi[pix, k], hw[pix, k]
+    world = wi[:, :1] * t[pix] + wi[:, 1:2] * b[pix] + wi[:, 2:] * n[pix]
+    return pix, wi, (4.0 * hw * wi[:, 2] * dw[k])[:, None] * environment(world, zenith)
+
+
+def render_sphere(brdf, light_dir, size=128, light="point"):
+    """Radiance (size, size, 3) of the sphere for ``brdf(wi, wo) -> (3, n)`` (local frame, n = z)."""
+    light_dir = _unit(*light_dir)
+    inside, n, t, b, wo = pixel_frames(size)
     out = np.full((size, size, 3), np.nan)
     if light == "point":
-        cos = n @ light_dir
         rad = np.zeros((n.shape[0], 3))
-        lit = np.flatnonzero(cos > 0)
-        wi = np.stack([t[lit] @ light_dir, b[lit] @ light_dir, cos[lit]], -1)
-        rad[lit] = (brdf(wi, wo[lit]) * cos[lit]).T
+        lit, cos, wi = point_samples(n, t, b, light_dir)
+        rad[lit] = (brdf(wi, wo[lit]) * cos).T
     elif light == "env":
         rad = _integrate_env(brdf, n, t, b, wo, light_dir)
     else:
@@ -122,24 +147,18 @@ def render_sphere(brdf, light_dir, size=128, light="point"):
 
 
 def _integrate_env(brdf, n, t, b, wo, zenith):
-    hs, dw = half_vector_samples()
     rad = np.zeros((n.shape[0], 3))
-    step = max(1, CHUNK // hs.shape[0])
+    step = max(1, CHUNK // half_vector_samples()[0].shape[0])
     for s in range(0, n.shape[0], step):
         p = slice(s, s + step)
-        hw = wo[p] @ hs.T                                              # (P, K): h.wo = h.wi
-        wi = 2.0 * hw[..., None] * hs - wo[p][:, None, :]
-        ok = (hw > 0) & (wi[..., 2] > 0)
-        world = wi[..., :1] * t[p][:, None] + wi[..., 1:2] * b[p][:, None] + wi[..., 2:] * n[p][:, None]
-        weight = np.where(ok, 4.0 * hw * wi[..., 2] * dw, 0.0)[..., None] * environment(world, zenith)
-        pi, k = np.nonzero(ok)
-        f = np.zeros(ok.shape + (3,))
-        f[pi, k] = brdf(wi[pi, k], np.broadcast_to(wo[p][:, None], wi.shape)[pi, k]).T
+        pix, wi, weight = env_samples(n[p], t[p], b[p], wo[p], zenith)
+        f = brdf(wi, wo[p][pix]).T
         good = np.isfinite(f)
-        total = weight.sum(1)
-        share = np.where(good, weight, 0.0).sum(1) / np.maximum(total, 1e-300)
-        r = np.where(good, f * weight, 0.0).sum(1) / np.maximum(share, 1e-300)
-        rad[p] = np.where(share >= MIN_VALID_SHARE, r, np.nan)
+        m = wo[p].shape[0]
+        total, share, r = (np.stack([np.bincount(pix, x[:, c], minlength=m) for c in range(3)], -1)
+                           for x in (weight, np.where(good, weight, 0.0), np.where(good, f * weight, 0.0)))
+        share = share / np.maximum(total, 1e-300)
+        rad[p] = np.where(share >= MIN_VALID_SHARE, r / np.maximum(share, 1e-300), np.nan)
     return rad
 
 

@@ -54,9 +54,9 @@ class PointView:
     size: int
     inside: np.ndarray
     lit: np.ndarray
-    kind = "point"
     cos: np.ndarray
     span: slice
+    kind = "point"
 
     def image(self, values):
         """Radiance (size, size, 3) from BRDF values (3, n) at the plan's points; NaN off the sphere."""
@@ -84,9 +84,10 @@ class EnvView:
     def __post_init__(self):
         self.total = [np.maximum(np.asarray(w.sum(axis=1)).ravel(), 1e-300) for w in self.weights]
 
-    def image(self, values):
-        """Radiance (size, size, 3) from BRDF values (3, len(cells)) at ``cells``; NaN off the
-        sphere and where less than sphere.MIN_VALID_SHARE of the light meets a value."""
+    def image(self, at_env):
+        """Radiance (size, size, 3) from BRDF values at the plan's ``env_cells`` (3, m); NaN off
+        the sphere and where less than sphere.MIN_VALID_SHARE of the light meets a value."""
+        values = at_env[:, self.columns]
         out = np.full((self.size, self.size, 3), np.nan)
         good = np.isfinite(values)
         rad = np.empty((int(self.inside.sum()), 3))
@@ -156,16 +157,9 @@ class Plan:
         (3, len(env_cells)) at ``env_cells``."""
         return interpolate(brdf, self.corners), brdf[:, self.env_cells]
 
-    def env_values(self, view, values):
-        """The part of values at ``env_cells`` that ``view`` reads."""
-        return values[:, view.columns]
-
     def images(self, at_points, at_env):
         """{label: radiance image} of every sphere, from values at ``cells`` and at ``env_cells``."""
-        out = {}
-        for v in self.spheres:
-            out[v.label] = v.image(at_points) if isinstance(v, PointView) else v.image(self.env_values(v, at_env))
-        return out
+        return {v.label: v.image(at_env if v.kind == "env" else at_points) for v in self.spheres}
 
 
 def plan(lights=None, size=128, env_size=64) -> Plan:
@@ -179,20 +173,11 @@ def _plan(lights, size, env_size):
     return Plan([(label, kind, np.array(d)) for label, kind, d in lights], size, env_size)
 
 
-def _frames(size):
-    normals, inside = sphere.sphere_normals(size)
-    n = normals[inside]
-    t, b = sphere.local_frame(n)
-    return inside, n, t, b, np.stack([t[:, 2], b[:, 2], n[:, 2]], -1)
-
-
 def _point_view(label, light, size, first):
     light = sphere._unit(*light)
-    inside, n, t, b, wo = _frames(size)
-    cos = n @ light
-    lit = np.flatnonzero(cos > 0)
-    wi = np.stack([t[lit] @ light, b[lit] @ light, cos[lit]], -1)
-    return PointView(label, light, size, inside, lit, cos[lit], slice(first, first + lit.size)), wi, wo[lit]
+    inside, n, t, b, wo = sphere.pixel_frames(size)
+    lit, cos, wi = sphere.point_samples(n, t, b, light)
+    return PointView(label, light, size, inside, lit, cos, slice(first, first + lit.size)), wi, wo[lit]
 
 
 def _env_view(label, zenith, size):
@@ -217,13 +202,8 @@ def _sources():
 def _env_arrays(zenith, size):
     """The environment operator as arrays: its table ``cells`` and one CSR pattern (``indptr``,
     ``indices``) with the weights of the three channels (``data``, (nnz, 3))."""
-    inside, n, t, b, wo = _frames(size)
-    hs, dw = sphere.half_vector_samples()
-    hw = wo @ hs.T                                                     # (P, K): h.wo = h.wi
-    wi = 2.0 * hw[..., None] * hs - wo[:, None, :]
-    ok = (hw > 0) & (wi[..., 2] > 0)
-    pix, k = np.nonzero(ok)
-    wi, hw = wi[pix, k], hw[pix, k]
+    inside, n, t, b, wo = sphere.pixel_frames(size)
+    pix, wi, weight = sphere.env_samples(n, t, b, wo, zenith)
     cell = nearest_cells(wi, wo[pix], ENV_STRIDE)
     g = table_geometry()
     # near the horizon a bin's centre may lie far from the sample in cos theta (and the model's
@@ -234,8 +214,6 @@ def _env_arrays(zenith, size):
     with np.errstate(divide="ignore", invalid="ignore"):
         off = np.maximum(np.abs(np.log(c_lo / lo)), np.abs(np.log(c_hi / hi)))
     keep = g.above_horizon[cell] & (off < GRAZING_LOG_RATIO)
-    world = wi[:, :1] * t[pix] + wi[:, 1:2] * b[pix] + wi[:, 2:] * n[pix]
-    weight = (4.0 * hw * wi[:, 2] * dw[k])[:, None] * sphere.environment(world, zenith)
     full = np.bincount(pix, weight.sum(1), minlength=n.shape[0])
     kept = np.bincount(pix[keep], weight[keep].sum(1), minlength=n.shape[0])
     weight *= (full / np.maximum(kept, 1e-300))[pix, None]          # what is left out, spread over the rest
