@@ -234,7 +234,7 @@ def sphere_caption(kind, d, meas, fit, spec, scale):
     rel = np.median(np.abs(fit[ok] - meas[ok]) / meas[ok]) if ok.any() else np.nan
     unit = "x the sky's horizon" if kind == "env" else "/sr x unit irradiance"
     return (f"measured (table) | fitted: {spec} | |fitted - measured| at the same exposure "
-            f"(median relative difference {100 * rel:.2g} %). {light_text(kind, d)}; camera: x right, y up, "
+            f"(median relative difference {100 * rel:.3g} %). {light_text(kind, d)}; camera: x right, y up, "
             f"z towards the viewer; white = {1 / scale:.3g} {unit} (99th percentile of measured), sRGB; "
             "magenta: missing.")
 
