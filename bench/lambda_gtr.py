@@ -1,6 +1,7 @@
 #!/usr/bin/env python3
-"""The Smith Lambda of the heavy-tailed distributions (GTR, ABC; issue 15): the registered
-shadowing terms (shadowing/smith_gtr.py, smith_abc.py) against the exact Smith Lambda.
+"""The Smith Lambda of the heavy-tailed distributions (GTR, ABC): the registered shadowing terms
+(shadowing/smith_gtr.py, smith_abc.py: a series whose coefficients the host computes from a rule)
+against the exact Smith Lambda.
 
 The exact Lambda is computed here from its definition (Heitz 2014, eq. 17 with the projected area
 of eq. 9), independently of the rule the terms use:
@@ -37,7 +38,7 @@ from scipy import integrate
 
 from brdfcl.model.lobes.cells import Cells
 from brdfcl.model.terms import REGISTRY
-from brdfcl.model.terms.shadowing import smith_abc, smith_gtr
+from brdfcl.model.terms.shadowing.smith import HOST_NODES, SERIES_TERMS
 
 HERE = Path(__file__).resolve().parent
 N_THETA = 240
@@ -211,7 +212,8 @@ def main():
           "Made by `python bench/lambda_gtr.py` (its docstring says how the exact Lambda is computed). "
           "Error: |G1 / G1_exact - 1|, G1 = 1 / (1 + Lambda), the largest over theta_o = 1..80 deg "
           "(step 1 deg) for each parameter pair.", "",
-          f"## GTR: `smith_gtr`, a {smith_gtr.N_NODES}-node rule with GGX's Lambda as control variate", "",
+          f"## GTR: `smith_gtr`, GGX's Lambda plus a {SERIES_TERMS}-term series in cos theta (from a "
+          f"{HOST_NODES}-node rule on the host)", "",
           f"Grid: alpha {len(alphas)} values log-spaced over 1e-4..1, gamma {len(gammas)} values over "
           "1.05..4; region fits use: alpha 0.005..0.3, gamma 1.1..3.", "",
           *summary(gtr, alphas, gammas, "alpha", "gamma"),
@@ -224,10 +226,10 @@ def main():
           f"| GGX's Lambda, same alpha | {fmt(gtr['naive'].max())} | {fmt(np.where(reg, gtr['naive'], 0).max())} |",
           f"| GGX's Lambda, alpha matched at small theta_o | {fmt(gtr['matched'].max())} | "
           f"{fmt(np.where(reg, gtr['matched'], 0).max())} |",
-          f"| this rule (`smith_gtr`) | {fmt(gtr['err'].max())} | {fmt(np.where(reg, gtr['err'], 0).max())} |", "",
+          f"| the series (`smith_gtr`) | {fmt(gtr['err'].max())} | {fmt(np.where(reg, gtr['err'], 0).max())} |", "",
           "Largest error over theta_o <= 80 deg, by alpha (rows) and gamma (columns):", "",
           *table(gtr, alphas, gammas, "alpha", "gamma", ra, cg), "",
-          f"## ABC: `smith_abc`, a {smith_abc.N_NODES}-node rule", "",
+          f"## ABC: `smith_abc`, a {SERIES_TERMS}-term series in cos theta (from a {HOST_NODES}-node rule on the host)", "",
           f"Grid: B {len(Bs)} values log-spaced over 0.1..1e8, C {len(Cs)} values over 0.25..8 (1 and 2 "
           "included); region of the published fits: B 10..1e5, C 0.5..6.", "",
           *summary(abc, Bs, Cs, "B", "C"),

@@ -25,6 +25,7 @@ from dataclasses import replace
 import numpy as np
 
 from brdfcl.model.compose import Model, ModelError, parse_lobe
+from brdfcl.optim.assessment import assess
 from brdfcl.optim.fit import FitOptions, FitResult, Fitter
 from brdfcl.optim.selection import select
 
@@ -241,7 +242,8 @@ def resolve(forms: str | None, opts: FitOptions, model_given: bool = False) -> s
 class FormFitter:
     """Fits a batch in every candidate form (``forms``: {key: model spec}, `form_keys`) and keeps
     each material's form of least penalised error.  ``loader``: the Fitter whose cells a batch is
-    loaded on (brdfcl.optim.fit.load_batch); every form fits the same cells."""
+    loaded on (brdfcl.optim.fit.load_batch); every form fits the same cells.  Only the chosen fit
+    of a material is assessed (standard errors, albedo, flags): the others are thrown away."""
 
     def __init__(self, opts: FitOptions, forms: dict[str, str], lambdas: Sequence[float] | None = None):
         self.forms = dict(forms)
@@ -254,26 +256,33 @@ class FormFitter:
         """[(the chosen form's fit, what NAME.json records of the choice: ``form``, ``form_errors``)]
         per material, in order; ``on_result(result, record)`` as each is chosen.  A material whose
         every form failed keeps the first form's (failed) fit."""
-        return self._choose(len(names), lambda f, start: f.fit(names, full, coarse, log=log, start=start),
-                            on_result, log)
+        names = list(names)
+        return self._choose(len(names), lambda f: (names, f.targets(names, full, coarse), full), on_result, log)
 
     def fit_samples(self, samples: Sequence, on_result: Callable[[FitResult, dict], None] | None = None,
                     log: Callable[[str], None] = lambda s: None) -> list[tuple[FitResult, dict]]:
         """`fit` for scattered measurements (brdfcl.optim.fit.Fitter.fit_samples)."""
         samples = list(samples)
-        return self._choose(len(samples), lambda f, start: f.fit_samples(samples, log=log, start=start),
-                            on_result, log)
+        return self._choose(len(samples), lambda f: f.sample_targets(samples), on_result, log)
 
-    def _choose(self, n: int, fit: Callable, on_result, log) -> list[tuple[FitResult, dict]]:
+    def _choose(self, n: int, upload: Callable, on_result, log) -> list[tuple[FitResult, dict]]:
+        """``upload(fitter)``: (names, targets, data) of the batch on that fitter's engine."""
         t0 = time.perf_counter()
         fitted: dict[str, list[FitResult]] = {}
+        uploaded: dict[str, tuple] = {}
         for key in fit_order(self.forms):
             f = self.fitters[key]
             src = start_source(key, fitted)
-            fitted[key] = fit(f, None if src is None else src[1](fitted[src[0]], f.model))
+            start = None if src is None else src[1](fitted[src[0]], f.model)
+            names, targets, data = uploaded[key] = upload(f)
+            assess, f.assess_results = f.assess_results, False
+            try:
+                fitted[key] = f.run(names, targets, data, time.perf_counter(), log=log, start_values=start)
+            finally:
+                f.assess_results = assess
             log(f"form {key}: fitted {n} material{'s' * (n != 1)}"
                 + (f" from the {src[0]} fits (no global search)" if src else ""))
-        out = []
+        chosen, records = [], []
         for i in range(n):
             errors = {k: fitted[k][i].errors["rmse_log"] for k in self.forms
                       if fitted[k][i].success and np.isfinite(fitted[k][i].errors["rmse_log"])}
@@ -284,9 +293,35 @@ class FormFitter:
                                                        for k in errors}}
             else:
                 key, record = next(iter(self.forms)), {"form": None, "form_errors": {}}
+            chosen.append(key)
+            records.append(record)
+        judged = self._assess(chosen, fitted, uploaded)
+        out = []
+        for i, key in enumerate(chosen):
             # the choice took every form's fit: its time and evaluations are the material's
-            out.append((dataclasses.replace(fitted[key][i], seconds=time.perf_counter() - t0,
-                                            nfev=sum(fitted[k][i].nfev for k in self.forms)), record))
+            r = fitted[key][i]
+            out.append((dataclasses.replace(r, seconds=time.perf_counter() - t0,
+                                            nfev=sum(fitted[k][i].nfev for k in self.forms),
+                                            stages={**r.stages, **judged[i][1]}, **judged[i][0]), records[i]))
             if on_result is not None:
                 on_result(*out[-1])
+        return out
+
+    def _assess(self, chosen: list[str], fitted: dict, uploaded: dict) -> list[tuple[dict, dict]]:
+        """({uncertainty, albedo, flags}, {"uncertainty": seconds}) per material: each chosen fit
+        assessed on its form's cells, one launch per form ({}, {}: the fitters do not assess)."""
+        out: list[tuple[dict, dict]] = [({}, {})] * len(chosen)
+        for key, f in self.fitters.items():
+            rows = np.array([i for i, k in enumerate(chosen) if k == key], dtype=int)
+            if not f.assess_results or not rows.size:
+                continue
+            t = time.perf_counter()
+            _, targets, data = uploaded[key]
+            res = [fitted[key][i] for i in rows]
+            values = np.array([[r.params[n] for n in f.model.names] for r in res], dtype=np.float64)
+            judged = assess(f.objective, targets.full, data=data, values=values, rows=rows,
+                            at_bound=[list(r.bounds_hit) for r in res])
+            seconds = {"uncertainty": time.perf_counter() - t}
+            for i, j in zip(rows, judged):
+                out[i] = (j, seconds)
         return out

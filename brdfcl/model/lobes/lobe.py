@@ -153,7 +153,7 @@ class Lobe:
         for t in self.terms:
             if not t.host:
                 continue
-            kw = {p.name: value(self.slot_name(p.name, term=t)) for p in t.params}
+            kw = {p: value(n) for p, n in self._inputs(t, None).items()}
             for k, v in t.consts(**kw).items():
                 out[f"{self.prefix}.{t.kind}.{k}"] = v
         return out

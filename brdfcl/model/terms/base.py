@@ -55,8 +55,8 @@ class Term:
     ``formula(**inputs)`` returns the term's value as a SymPy expression of the cell symbols
     (or of ``f``, the spatial frequency, for a PSD), given one symbol per input (its parameters,
     then the ``uses`` it reads from another term) and, for each name in ``host``, a function of
-    the parameters computed on the host (a normalisation constant): ``host_consts(**params)``
-    returns ``({name: value}, {name: {param: derivative}})`` in float64."""
+    its inputs computed on the host (a normalisation constant, a series' coefficients):
+    ``host_consts(**inputs)`` returns ``({name: value}, {name: {input: derivative}})`` in float64."""
 
     kind: str                       # one of KINDS
     name: str
@@ -67,7 +67,7 @@ class Term:
     uses: tuple[str, ...] = ()      # parameters read from another term (G reads D's alpha)
     ndfs: tuple[str, ...] = ()      # shadowing: the D terms it is defined for (empty: any)
     per_channel: bool = False       # evaluated once per channel (per-channel parameters)
-    host: tuple[str, ...] = ()      # parameter-only constants computed on the host
+    host: tuple[str, ...] = ()      # constants of the inputs alone, computed on the host
     host_consts: Callable | None = None
     origin: str = ""                # the module that registered it (set by ``register``)
 
@@ -93,14 +93,14 @@ class Term:
     @property
     def const_names(self) -> tuple[str, ...]:
         """Host constants passed to the kernel: each constant, then its derivative by each
-        parameter (``N, dN_alpha, dN_p``)."""
-        return tuple(n for k in self.host for n in (k, *(f"d{k}_{p.name}" for p in self.params)))
+        input (``N, dN_alpha, dN_p``)."""
+        return tuple(n for k in self.host for n in (k, *(f"d{k}_{p}" for p in self.inputs)))
 
-    def consts(self, **params) -> dict:
-        """The host constants of ``const_names`` at these parameter values."""
+    def consts(self, **inputs) -> dict:
+        """The host constants of ``const_names`` at these input values."""
         if self.host_consts is None:
             return {}
-        k, d = self.host_consts(**params)
+        k, d = self.host_consts(**inputs)
         return {n: v for name in self.host
                 for n, v in ((name, k[name]), *((f"d{name}_{p}", g) for p, g in d[name].items()))}
 
@@ -116,23 +116,26 @@ class Term:
         return _expressions(self)
 
     def reference(self, arg, **inputs):
-        """float64 value and {input: derivative} at ``arg`` (Cells, or f for a PSD)."""
+        """float64 value and {input: derivative} at ``arg`` (Cells, or f for a PSD); the host
+        constants are computed from the inputs where they are not given."""
+        if self.host and not set(self.const_names) <= set(inputs):
+            inputs = {**inputs, **self.consts(**{n: inputs[n] for n in self.inputs})}
         return evaluate(self, arg, **inputs)
 
 
 @cache
 def _expressions(term: Term):
     syms = term.symbols()
-    params = [syms[p.name] for p in term.params]
-    funcs = {k: sp.Function(k)(*params) for k in term.host}
+    inputs = [syms[n] for n in term.inputs]
+    funcs = {k: sp.Function(k)(*inputs) for k in term.host}
     value = sp.sympify(term.formula(**syms, **funcs))
     plain = {fn: sp.Symbol(k, real=True) for k, fn in funcs.items()}
     derivs = {}
     for name, s in syms.items():
         d = sp.diff(value, s)
         for k, fn in funcs.items():
-            for p in term.params:
-                d = d.subs(sp.Derivative(fn, p.symbol), sp.Symbol(f"d{k}_{p.name}", real=True))
+            for n, x in zip(term.inputs, inputs):
+                d = d.subs(sp.Derivative(fn, x), sp.Symbol(f"d{k}_{n}", real=True))
         derivs[name] = d.subs(plain)
         assert not derivs[name].atoms(sp.Derivative), (term.name, name)
     return value.subs(plain), derivs

@@ -4,7 +4,8 @@ masking-shadowing function, eq. 72 (separable) and 99 (height-correlated)).
 For a distribution whose Lambda has no closed form (GTR, ABC), the exact Smith Lambda (Heitz 2014,
 eq. 17 with the projected area of eq. 9: 1 + Lambda(o) = int max(0, o.m) D(m) dm / cos theta_o, so
 Lambda(o) = int max(0, -o.m) D(m) dm / cos theta_o, the back-facing microfacets' projected area) is
-evaluated by a fixed Gauss-Legendre rule.  With tau = tan theta_o and t = tan theta_m, the phi
+evaluated by a fixed Gauss-Legendre rule, on the host, at the nodes of a short series in cos theta
+that the kernels read (``SeriesLambda``).  With tau = tan theta_o and t = tan theta_m, the phi
 integral in closed form gives (Heitz 2014, eq. 72's Lambda for an isotropic P22 = D cos^4 theta_m)
 
     Lambda(tau) = 2 int_{1/tau}^inf w(tau t) P22(t) t dt,   w(x) = sqrt(x^2 - 1) - arccos(1/x),
@@ -30,22 +31,33 @@ P(t) = alpha^2 / (alpha^2 + t^2) gives its closed form back, (sqrt(1 + alpha^2 t
 """
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 import sympy as sp
 
-from brdfcl.model.terms.symbols import t2i, t2o
+from brdfcl.model.terms.symbols import ci, co, t2i, t2o
 
 CITE = "Walter et al. 2007; Heitz 2014, Understanding the masking-shadowing function"
 
 
+class Direction(NamedTuple):
+    """The cell symbols of one direction a Lambda reads: tan^2 theta and cos theta."""
+    tan2: sp.Expr
+    cos: sp.Expr
+
+
+INCIDENT, OUTGOING = Direction(t2i, ci), Direction(t2o, co)
+
+
 def separable(lam):
-    """G = G1(i) G1(o), G1 = 1 / (1 + Lambda(tan^2 theta)); ``lam(tan2, **d_params)``."""
-    return lambda **p: 1 / ((1 + lam(t2i, **p)) * (1 + lam(t2o, **p)))
+    """G = G1(i) G1(o), G1 = 1 / (1 + Lambda(direction)); ``lam(Direction, **inputs)``."""
+    return lambda **p: 1 / ((1 + lam(INCIDENT, **p)) * (1 + lam(OUTGOING, **p)))
 
 
 def correlated(lam):
     """G = 1 / (1 + Lambda(i) + Lambda(o))."""
-    return lambda **p: 1 / (1 + lam(t2i, **p) + lam(t2o, **p))
+    return lambda **p: 1 / (1 + lam(INCIDENT, **p) + lam(OUTGOING, **p))
 
 
 class expm1(sp.Function):
@@ -97,3 +109,75 @@ def lambda_from_density(tan2, density, n):
     b, w = _nodes(n)
     return _rule(tan2, n, 2 * w * (np.tan(b) - b) * np.sin(b) / np.cos(b),
                  lambda q, r, u: u * r * r * density(q, r))
+
+
+# ---- a Lambda without a closed form, as a short series in cos theta --------------------------------
+
+SERIES_TERMS = 14
+"""Chebyshev terms of a series Lambda (``SeriesLambda``)."""
+SERIES_FROM_DEG = 88.0
+"""The series interpolates cos theta over [cos SERIES_FROM_DEG, 1]; beyond, it extrapolates."""
+HOST_NODES = 24
+"""Nodes of the rule the host evaluates at the series' nodes (``lambda_from_density``)."""
+
+_COS_LO = float(np.cos(np.radians(SERIES_FROM_DEG)))
+_X = np.cos(np.pi * (np.arange(SERIES_TERMS) + 0.5) / SERIES_TERMS)        # Chebyshev nodes in x
+_COS = _COS_LO + (_X + 1.0) / 2.0 * (1.0 - _COS_LO)                        # ... in cos theta
+_CHEB = (np.where(np.arange(SERIES_TERMS) == 0, 1.0, 2.0)[:, None] / SERIES_TERMS
+         * np.cos(np.outer(np.arange(SERIES_TERMS), np.pi * (np.arange(SERIES_TERMS) + 0.5) / SERIES_TERMS)))
+"""Values at the nodes -> Chebyshev coefficients (interpolation: c_m = (2 - [m = 0]) / K sum_j f_j T_m(x_j))."""
+_TO_COEF = np.stack([np.polynomial.chebyshev.cheb2poly(row) for row in _CHEB.T], axis=1)
+"""Values at the nodes -> the same polynomial's coefficients of x^k (what a cell reads, by Horner)."""
+
+
+class _Nodes(NamedTuple):
+    """The cell quantities the host's rule reads at the series' nodes (an outgoing direction)."""
+    ch: np.ndarray
+    co: np.ndarray
+    t2o: np.ndarray
+
+
+class SeriesLambda:
+    """Lambda(theta) = base(theta) + S(cos theta) / cos theta, S the polynomial of degree
+    SERIES_TERMS - 1 in x = 2 (cos theta - cos 88 deg) / (1 - cos 88 deg) - 1 that interpolates
+    cos theta (Lambda - base) at the Chebyshev nodes in x.
+
+    For a distribution whose Lambda has no closed form, a fixed rule per cell costs a log and an exp
+    at each node, twice per cell and evaluation, and made those kernels five times GGX's.  The
+    series moves the rule to the host: per evaluation (one parameter vector) the host evaluates the
+    rule ``correction`` (HOST_NODES Gauss-Legendre nodes, float64, its derivatives from SymPy) at the
+    series' SERIES_TERMS nodes in cos theta and interpolates, giving the coefficients c_k of x^k and
+    their derivatives by each input as host constants; a cell pays a Horner scheme.  The Chebyshev
+    coefficients of a smooth function fall fast, so the x^k coefficients stay small and Horner's sum
+    loses no more than a few float roundings.
+    cos theta S = cos theta (Lambda - base) is smooth in cos theta (Lambda ~ tan theta near grazing),
+    which makes a short series accurate: its error against the exact Lambda is measured by
+    bench/lambda_gtr.py.  ``base(direction, **inputs)`` is a closed form the series corrects (GGX's
+    Lambda for GTR, 0 for none), ``correction(direction, n, **inputs)`` Lambda - base by an n-node rule,
+    ``origin`` the module that defines them (the host rule's generated code is keyed by it)."""
+
+    def __init__(self, name: str, inputs: tuple[str, ...], base, correction, origin: str):
+        from brdfcl.model.terms.base import Term
+        self.base, self.inputs = base, tuple(inputs)
+        self.host = tuple(f"c{k}" for k in range(SERIES_TERMS))
+        self.rule = Term("shadowing", f"{name}_rule", (), lambda **p: correction(OUTGOING, HOST_NODES, **p),
+                         uses=self.inputs, origin=origin)
+        self._nodes = _Nodes(_COS, _COS, (1.0 - _COS ** 2) / _COS ** 2)
+
+    def host_consts(self, **inputs):
+        """({c_k: value}, {c_k: {input: derivative}}), float64, for inputs of any (equal) shape
+        (c_k: the coefficient of x^k)."""
+        at = {k: np.asarray(v, dtype=np.float64)[..., None] for k, v in inputs.items()}
+        value, deriv = self.rule.reference(self._nodes, **at)
+        coef = (_COS * value) @ _TO_COEF.T
+        dcoef = {p: (_COS * g) @ _TO_COEF.T for p, g in deriv.items()}
+        return ({c: coef[..., k] for k, c in enumerate(self.host)},
+                {c: {p: d[..., k] for p, d in dcoef.items()} for k, c in enumerate(self.host)})
+
+    def __call__(self, d: Direction, **p):
+        """Lambda in the direction ``d``: ``p`` holds the inputs and the coefficients c_k."""
+        x = (d.cos - _COS_LO) * sp.Float(2.0 / (1.0 - _COS_LO)) - 1
+        series = sp.Integer(0)
+        for c in reversed(self.host):
+            series = p[c] + x * series
+        return self.base(d, **{k: p[k] for k in self.inputs}) + series / d.cos

@@ -1,5 +1,6 @@
-"""Smith shadowing-masking for the ABC distribution (ndf/abc.py), from its exact Lambda evaluated by
-a fixed rule (shadowing/smith.py, ``lambda_from_density``).
+"""Smith shadowing-masking for the ABC distribution (ndf/abc.py), from its exact Lambda as a short
+series (shadowing/smith.py, ``SeriesLambda``: a Chebyshev series in cos theta whose coefficients the
+host computes per evaluation from the exact Smith integral, ``lambda_from_density``).
 
 The rule reads D = N (1 + B (1 - cos theta_m))^-C at its nodes, beyond the slope 1/tan theta_o;
 1 - cos theta_m = (1 - cos^2) / (1 + cos), without cancellation.  N (ndf/abc.py) is formed here from
@@ -8,21 +9,19 @@ B and C, as a parameter-only expression: with l = ln(1 + B), Y = 1 + B,
     1/N = (2 pi / B^2) (Y g(1 - C) - g(2 - C)),   g(k) = expm1(k l) / k,
 
 g from its series l (1 + k l / 2 + (k l)^2 / 6) where |k| < 1e-6, so C = 1 and C = 2 (the closed
-form's removable singularities) are exact.  The rule's error is measured against the exact Lambda
-(the hemisphere integral of D's own reference) by bench/lambda_gtr.py (bench/results/lambda_gtr.md):
-with N_NODES = 12 the largest relative error of G1 = 1/(1 + Lambda) for theta_o <= 80 deg is 2.3e-4
-over B in [0.1, 1e8], C in [0.25, 8] (for the roughest lobes, B < 1, at 80 deg) and 9.7e-5 where the
-published fits lie (B 10..1e5, C 0.5..6).
+form's removable singularities) are exact.  The error against the exact Lambda (the hemisphere
+integral of D's own reference) is measured by bench/lambda_gtr.py (bench/results/lambda_gtr.md) over
+B in [0.1, 1e8], C in [0.25, 8].
 (Heitz 2014, Understanding the masking-shadowing function, eq. 17 and 72 / 99; Low et al. 2012,
 section 5, for the distribution.)
 """
-from sympy import Piecewise, exp, log, pi, sqrt
+from sympy import Integer, Piecewise, exp, log, pi, sqrt
 
 from brdfcl.model.terms.base import Term, register
-from brdfcl.model.terms.shadowing.smith import CITE, correlated, expm1, lambda_from_density, separable
+from brdfcl.model.terms.shadowing.smith import (CITE, SERIES_TERMS, SeriesLambda, correlated, expm1,
+                                                lambda_from_density, separable)
 from brdfcl.model.terms.symbols import log1p
 
-N_NODES = 12
 _SERIES_BELOW = 1e-6
 
 
@@ -32,18 +31,20 @@ def _g(k, ell):
                      (expm1(k * ell) / k, True))
 
 
-def lambda_abc(tan2, B, C, n=N_NODES):
+def abc_lambda(d, n, B, C):
+    """ABC's Lambda in the direction ``d`` by the n-node rule."""
     ell = log1p(B)
     N = B**2 / (2 * pi * ((1 + B) * _g(1 - C, ell) - _g(2 - C, ell)))
 
     def density(q, r):                               # D at cos^2 theta_m = q, r = 1 - q
         return N * exp(-C * log(1 + B * r / (1 + sqrt(q))))
 
-    return lambda_from_density(tan2, density, n)
+    return lambda_from_density(d.tan2, density, n)
 
 
+LAMBDA_ABC = SeriesLambda("smith_abc", ("B", "C"), lambda d, B, C: Integer(0), abc_lambda, __name__)
 CITE_ABC = CITE + "; Low et al. 2012 (ABC)"
-register(Term("shadowing", "smith_abc", (), separable(lambda_abc), uses=("B", "C"), ndfs=("abc",),
-              cite=CITE_ABC, doc=f"separable Smith for ABC, exact Lambda by a {N_NODES}-node rule"))
-register(Term("shadowing", "smith_abc_hc", (), correlated(lambda_abc), uses=("B", "C"), ndfs=("abc",),
-              cite=CITE_ABC, doc=f"height-correlated Smith for ABC, exact Lambda by a {N_NODES}-node rule"))
+_DOC = f"Smith for ABC, exact Lambda as a {SERIES_TERMS}-term series"
+for _name, _form, _kind in (("smith_abc", separable, "separable"), ("smith_abc_hc", correlated, "height-correlated")):
+    register(Term("shadowing", _name, (), _form(LAMBDA_ABC), uses=LAMBDA_ABC.inputs, ndfs=("abc",),
+                  host=LAMBDA_ABC.host, host_consts=LAMBDA_ABC.host_consts, cite=CITE_ABC, doc=f"{_kind} {_DOC}"))

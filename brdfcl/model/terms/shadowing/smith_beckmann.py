@@ -6,8 +6,8 @@ from brdfcl.model.terms.base import Term, register
 from brdfcl.model.terms.shadowing.smith import CITE, correlated, separable
 
 
-def lambda_beckmann(tan2, alpha):
-    a = 1 / (alpha * sqrt(tan2))
+def lambda_beckmann(d, alpha):
+    a = 1 / (alpha * sqrt(d.tan2))
     return (exp(-a**2) / (a * sqrt(pi)) - erfc(a)) / 2
 
 

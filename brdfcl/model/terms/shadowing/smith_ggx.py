@@ -6,8 +6,8 @@ from brdfcl.model.terms.base import Term, register
 from brdfcl.model.terms.shadowing.smith import CITE, correlated, separable
 
 
-def lambda_ggx(tan2, alpha):
-    u = alpha**2 * tan2
+def lambda_ggx(d, alpha):
+    u = alpha**2 * d.tan2
     return u / (2 * (1 + sqrt(1 + u)))
 
 

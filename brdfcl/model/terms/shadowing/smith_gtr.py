@@ -1,41 +1,37 @@
-"""Smith shadowing-masking for GTR (ndf/gtr.py), from its exact Lambda evaluated by a fixed rule.
+"""Smith shadowing-masking for GTR (ndf/gtr.py), from its exact Lambda as a short series.
 
-GTR's Lambda has no closed form for gamma != 2 (its slope distribution is not shape-invariant), so
-the exact Smith integral of shadowing/smith.py (``lambda_from_density``) is evaluated by an
-N_NODES-point Gauss-Legendre rule, with GGX's closed form as a control variate:
+GTR's Lambda has no closed form for gamma != 2 (its slope distribution is not shape-invariant).  It is
+written as GGX's closed form with the same alpha plus a correction, Lambda_gtr = Lambda_ggx(alpha) +
+rule[D_gtr - D_ggx], the exact Smith integral of shadowing/smith.py (``lambda_from_density``) of the
+difference of the two distributions, so that gamma = 2 is GGX's Smith G exactly, and alpha = 1 too
+(D uniform, GGX's, for any gamma).  The kernels read the correction as a Chebyshev series in
+cos theta whose coefficients the host computes per evaluation from the rule (shadowing/smith.py,
+``SeriesLambda``).
 
-    Lambda_gtr = Lambda_ggx(alpha) + rule[D_gtr - D_ggx],
+At a node of the rule, with q = cos^2 theta_m, 1 - q = r and rest = r + alpha^2 q = cos^2 (1 + tan^2 /
+alpha^2) alpha^2, D_gtr = c rest^-gamma and D_ggx = alpha^2 / (pi rest^2), where c = (gamma - 1)(1 -
+alpha^2) / (pi (alpha^(2 - 2 gamma) - 1)) (Burley 2012, eq. 4 and appendix B.2) is formed as
+s k / (pi expm1(-2 s ln alpha)) with s = gamma - 1, k = (1 - alpha)(1 + alpha): no cancellation
+anywhere (rest is a sum of positive terms, expm1 is exact near 0).
 
-so that gamma = 2 is GGX's Smith G exactly, and alpha = 1 too (D uniform, GGX's, for any gamma).
-At a node, with q = cos^2 theta_m, 1 - q = r and rest = r + alpha^2 q = cos^2 (1 + tan^2 / alpha^2)
-alpha^2, D_gtr = c rest^-gamma and D_ggx = alpha^2 / (pi rest^2), where c = (gamma - 1)(1 - alpha^2) /
-(pi (alpha^(2 - 2 gamma) - 1)) (Burley 2012, eq. 4 and appendix B.2) is formed here as a
-parameter-only expression, s k / (pi expm1(-2 s ln alpha)) with s = gamma - 1, k = (1 - alpha)
-(1 + alpha): no cancellation anywhere (rest is a sum of positive terms, expm1 is exact near 0).  Each
-node costs one log and one exp; the derivatives reuse them.
-
-The rule's error is measured against the exact Lambda (the hemisphere integral of D's own
-reference) by bench/lambda_gtr.py (bench/results/lambda_gtr.md): the largest relative error of
-G1 = 1/(1 + Lambda) for theta_o <= 80 deg is 2.9e-4 over the whole box (alpha 1e-4..1, gamma
-1.05..4; at alpha = 0.68, gamma = 4, 80 deg) and 3.8e-5 in the region fits use (alpha 0.005..0.3,
-gamma 1.1..3).  In that region GGX's Lambda with the same alpha is off by up to 53%, and with an
-alpha matched to Lambda at small theta_o by up to 10%.  (Heitz 2014, Understanding the
-masking-shadowing function, eq. 17 for Lambda and 72 / 99 for G.)
+The error against the exact Lambda (the hemisphere integral of D's own reference) is measured by
+bench/lambda_gtr.py (bench/results/lambda_gtr.md), over the whole box alpha 1e-4..1, gamma 1.05..4.
+(Heitz 2014, Understanding the masking-shadowing function, eq. 17 for Lambda and 72 / 99 for G.)
 """
 from sympy import Piecewise, exp, log, pi
 
 from brdfcl.model.terms.base import Term, register
-from brdfcl.model.terms.shadowing.smith import CITE, correlated, expm1, lambda_from_density, separable
+from brdfcl.model.terms.shadowing.smith import (CITE, SERIES_TERMS, SeriesLambda, correlated, expm1,
+                                                lambda_from_density, separable)
 from brdfcl.model.terms.shadowing.smith_ggx import lambda_ggx
 
-N_NODES = 10
 
-
-def lambda_gtr(tan2, alpha, gamma, n=N_NODES):
+def gtr_correction(d, n, alpha, gamma):
+    """Lambda_gtr - Lambda_ggx in the direction ``d`` by the n-node rule."""
     s = gamma - 1
     a2 = alpha**2
     # at alpha = 1 (D uniform, = GGX's for any gamma) the correction is 0 and c's 0/0 is not formed:
-    # two parameter-only switches (scalar ternaries in the kernels)
+    # two parameter-only switches
     on = Piecewise((0, alpha >= 1), (1, True))
     c = Piecewise((1 / pi, alpha >= 1),
                   (s * (1 - alpha) * (1 + alpha) / (pi * expm1(-2 * s * log(alpha))), True))
@@ -44,11 +40,13 @@ def lambda_gtr(tan2, alpha, gamma, n=N_NODES):
         rest = r + a2 * q
         return c * exp(-gamma * log(rest)) - a2 / (pi * rest**2)
 
-    return lambda_ggx(tan2, alpha) + on * lambda_from_density(tan2, density, n)
+    return on * lambda_from_density(d.tan2, density, n)
 
 
+LAMBDA_GTR = SeriesLambda("smith_gtr", ("alpha", "gamma"), lambda d, alpha, gamma: lambda_ggx(d, alpha),
+                          gtr_correction, __name__)
 CITE_GTR = CITE + "; Burley 2012 (GTR)"
-register(Term("shadowing", "smith_gtr", (), separable(lambda_gtr), uses=("alpha", "gamma"), ndfs=("gtr",),
-              cite=CITE_GTR, doc=f"separable Smith for GTR, exact Lambda by a {N_NODES}-node rule"))
-register(Term("shadowing", "smith_gtr_hc", (), correlated(lambda_gtr), uses=("alpha", "gamma"), ndfs=("gtr",),
-              cite=CITE_GTR, doc=f"height-correlated Smith for GTR, exact Lambda by a {N_NODES}-node rule"))
+_DOC = f"Smith for GTR, exact Lambda as a {SERIES_TERMS}-term series"
+for _name, _form, _kind in (("smith_gtr", separable, "separable"), ("smith_gtr_hc", correlated, "height-correlated")):
+    register(Term("shadowing", _name, (), _form(LAMBDA_GTR), uses=LAMBDA_GTR.inputs, ndfs=("gtr",),
+                  host=LAMBDA_GTR.host, host_consts=LAMBDA_GTR.host_consts, cite=CITE_GTR, doc=f"{_kind} {_DOC}"))
