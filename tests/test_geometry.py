@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from brdfcl.data.geometry import DEFAULT_CUTOFF_DEG, bin_centres, table_geometry
+from brdfcl.data.geometry import DEFAULT_CUTOFF_DEG, bin_centres, directions, grid_directions, table_geometry
 
 
 def test_directions_are_consistent():
@@ -42,3 +42,11 @@ def test_cutoff_mask():
     assert (g.mask(None) == g.above_horizon).all()
     with pytest.raises(ValueError):
         g.mask(-5)
+
+
+def test_table_directions_are_the_general_formula():
+    th, td, pd = bin_centres()
+    th, td, pd = th[::7], td[::5], pd[::9]
+    TH, TD, PD = (a.ravel() for a in np.meshgrid(th, td, pd, indexing="ij"))
+    for a, b in zip(grid_directions(th, td, pd), directions(TH, TD, PD)):
+        assert np.max(np.abs(a - b)) < 1e-15
