@@ -31,8 +31,9 @@ from pathlib import Path
 import numpy as np
 
 from brdfcl import __version__
-from brdfcl.data.geometry import table_geometry
+from brdfcl.data.geometry import DEFAULT_CUTOFF_DEG, table_geometry
 from brdfcl.data.merl import read_merl
+from brdfcl.device.cellsets import select_cells
 from brdfcl.model.compose import DEFAULT_MODEL, Model
 from brdfcl.model.metrics import errors, transform
 from brdfcl.optim.fit import FitOptions, Fitter, load_batch
@@ -239,6 +240,8 @@ def main(argv=None):
                     help="brdfcl models compared with --published (comma-separated; the first is the one ranked; "
                          "'default': what fit-all fits when no model is given, each material's form chosen)")
     ap.add_argument("--stability", action="store_true", help="also run the numerical stability report")
+    ap.add_argument("--scipy-only", metavar="MATERIAL", default=None,
+                    help="only the scipy peer on this one material of --data, as a whole process (a user's script)")
     ap.add_argument("--report-only", action="store_true",
                     help="rebuild bench_fit.md and the plot from --out/fit_curves.csv without fitting")
     ap.add_argument("--out", default=str(HERE / "results"))
@@ -251,6 +254,12 @@ def main(argv=None):
     else:
         names = args.materials.split(",") if args.materials else DEFAULT_SET
         paths = [data / f"{n}.binary" for n in names if (data / f"{n}.binary").exists()]
+    if args.scipy_only:
+        rec = run_scipy(data / f"{args.scipy_only}.binary", Model(args.model), args.metric,
+                        select_cells(DEFAULT_CUTOFF_DEG))
+        print(f"scipy {args.scipy_only}: rmse_{args.metric} {rec.rows[-1][1]:.5f} after {rec.rows[-1][0]:.1f} s, "
+              f"{len(rec.rows) - 1} evaluations")
+        return
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     if args.published:
