@@ -239,6 +239,15 @@ def resolve(forms: str | None, opts: FitOptions, model_given: bool = False) -> s
     return forms if asked_for(forms) else None
 
 
+def _same_cells(a: Fitter, b: Fitter) -> bool:
+    """Whether two fitters' engines can read one upload: the same OpenCL context (one per device
+    in a process), precision, padding, target transform and cells."""
+    ea, eb = a.engine, b.engine
+    return (ea.ctx is eb.ctx and ea.dtype == eb.dtype and max(16, ea.opt.vw) == max(16, eb.opt.vw)
+            and (ea.opt.metric, ea.opt.cosw) == (eb.opt.metric, eb.opt.cosw) and a.opts.cutoff_deg == b.opts.cutoff_deg
+            and np.array_equal(a.coarse_index, b.coarse_index) and a.opts.preview_stride == b.opts.preview_stride)
+
+
 class FormFitter:
     """Fits a batch in every candidate form (``forms``: {key: model spec}, `form_keys`) and keeps
     each material's form of least penalised error.  ``loader``: the Fitter whose cells a batch is
@@ -266,7 +275,8 @@ class FormFitter:
         return self._choose(len(samples), lambda f: f.sample_targets(samples), on_result, log)
 
     def _choose(self, n: int, upload: Callable, on_result, log) -> list[tuple[FitResult, dict]]:
-        """``upload(fitter)``: (names, targets, data) of the batch on that fitter's engine."""
+        """``upload(fitter)``: (names, targets, data) of the batch on that fitter's engine, made once
+        for the forms whose engines can read the same buffers (`_same_cells`)."""
         t0 = time.perf_counter()
         fitted: dict[str, list[FitResult]] = {}
         uploaded: dict[str, tuple] = {}
@@ -274,7 +284,8 @@ class FormFitter:
             f = self.fitters[key]
             src = start_source(key, fitted)
             start = None if src is None else src[1](fitted[src[0]], f.model)
-            names, targets, data = uploaded[key] = upload(f)
+            same = next((k for k in uploaded if _same_cells(self.fitters[k], f)), None)
+            names, targets, data = uploaded[key] = uploaded[same] if same is not None else upload(f)
             assess, f.assess_results = f.assess_results, False
             try:
                 fitted[key] = f.run(names, targets, data, time.perf_counter(), log=log, start_values=start)
