@@ -51,13 +51,17 @@ def albedo_cells(theta_i: float) -> tuple[Cells, np.ndarray]:
 
 def directional_albedo(model: Model, values: np.ndarray,
                        theta_i_deg: Sequence[float] = ALBEDO_THETA_DEG) -> np.ndarray:
-    """Directional albedo (n, angles, channels) of the model at each value vector (n, n_params)."""
+    """Directional albedo (n, angles, channels) of the model at each value vector (n, n_params):
+    every angle's cells in one reference evaluation per vector."""
     values = np.atleast_2d(np.asarray(values, dtype=np.float64))
+    parts = [albedo_cells(math.radians(t)) for t in theta_i_deg]
+    cells = Cells(*(np.concatenate([getattr(c, k) for c, _ in parts]) for k in ("sh", "ch", "cd", "ci", "co")))
+    wq = np.concatenate([w * np.maximum(c.co, 0.0) for c, w in parts])
+    angle = np.repeat(np.arange(len(parts)), [len(c) for c, _ in parts])
     out = np.zeros((values.shape[0], len(theta_i_deg), model.n_channels))
-    for j, t in enumerate(theta_i_deg):
-        cells, wq = albedo_cells(math.radians(t))
-        wq = wq * np.maximum(cells.co, 0.0)
-        for i, v in enumerate(values):
-            p = model.reference(cells, v, jacobian=False)
-            out[i, j] = np.sum(np.where(np.isfinite(p), p, 0.0) * wq, axis=1)
+    for i, v in enumerate(values):
+        p = model.reference(cells, v, jacobian=False)
+        terms = np.where(np.isfinite(p), p, 0.0) * wq
+        for j in range(len(parts)):
+            out[i, j] = np.sum(terms[:, angle == j], axis=1)
     return out
