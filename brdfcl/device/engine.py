@@ -24,7 +24,10 @@ from brdfcl.device.program import (
     ProgramError,
     build,
     crash_guard,
+    forget_binary,
     keep_attempt,
+    keep_binary,
+    load_binary,
     remember_pocl_cache,
     repair_pocl_cache,
 )
@@ -96,6 +99,14 @@ class Engine:
         started = time.time_ns() - 2_000_000_000     # file times may lag the clock
         failures: list[ProgramError] = []
         with crash_guard(self.source, self.device, log=_log.warning) as first:
+            kept = load_binary(self.ctx, self.device, self.source, first)
+            if kept is not None:
+                program, self._kernels = kept
+                result = selftest.check(self) if verify else None
+                if result is None or result.ok:
+                    _PROGRAMS[key] = (program, result)
+                    return _PROGRAMS[key]
+                forget_binary(self.device, self.source, first)
             for attempt in (first, first + 1):
                 try:
                     program, self._kernels = build(self.ctx, self.device, self.source, attempt)
@@ -106,6 +117,7 @@ class Engine:
                 if result is None or result.ok:
                     if result is not None:
                         remember_pocl_cache(self.platform, started)
+                        keep_binary(program, self.device, self.source, attempt)
                     if failures:
                         keep_attempt(self.source, self.device, attempt)
                         _log.warning(f"brdfcl: rebuilt the {self.model.spec} program on {self.device.name}: "

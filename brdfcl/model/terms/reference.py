@@ -18,7 +18,7 @@ import sympy as sp
 from brdfcl.model.terms.symbols import CELL, EXP_LIMIT, f
 
 _CUSTOM = {"exp_clamped": lambda x: np.exp(np.minimum(x, EXP_LIMIT))}
-_MODULES = [_CUSTOM, "scipy", "numpy"]
+_MODULES = [_CUSTOM, "numpy", "scipy"]        # numpy first: its log1p, expm1 need no scipy import
 
 
 @cache
