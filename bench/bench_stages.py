@@ -116,7 +116,8 @@ def device_name() -> str:
     return f"{d.name.strip()} ({label(p)}, driver {d.driver_version.strip()})"
 
 
-ORDER = ("interpreter start", "imports", "start-up to the first kernel launch", "engines (generation, build, self-test)",
+ORDER = ("interpreter start", "imports", "start-up to the first kernel launch",
+         "engines (generation, build, self-test)",
          "read + extract", "upload", "global search", "local search", "assessment of the chosen fits",
          "report pages and summary", "kernels", "total (whole process)")
 
@@ -151,7 +152,8 @@ def main():
     lines += ["", "'start-up to the first kernel launch' overlaps the rows below it (the first launch is the "
               "first engine's self-test). 'global search' and 'local search' hold every form's ('local': the rest of "
               "each form's fit: picking starts, Levenberg-Marquardt, its errors); 'kernels' is "
-              f"the wall time inside the engine's launches over the whole run ({med['kernels'] / max(search, 1e-9) * 100:.0f}% "
+              "the wall time inside the engine's launches over the whole run "
+              f"({med['kernels'] / max(search, 1e-9) * 100:.0f}% "
               "of the two search rows' sum, which also hold the host's work: nlopt, the lockstep, host constants). "
               "'report pages and summary' is the writers' finish: the report's images and pages.", "",
               "Runs (s): " + "; ".join(f"{r['total (whole process)']:.1f}" for r in runs)]

@@ -229,7 +229,8 @@ def main():
           f"| the series (`smith_gtr`) | {fmt(gtr['err'].max())} | {fmt(np.where(reg, gtr['err'], 0).max())} |", "",
           "Largest error over theta_o <= 80 deg, by alpha (rows) and gamma (columns):", "",
           *table(gtr, alphas, gammas, "alpha", "gamma", ra, cg), "",
-          f"## ABC: `smith_abc`, a {SERIES_TERMS}-term series in cos theta (from a {HOST_NODES}-node rule on the host)", "",
+          f"## ABC: `smith_abc`, a {SERIES_TERMS}-term series in cos theta (from a {HOST_NODES}-node rule "
+          "on the host)", "",
           f"Grid: B {len(Bs)} values log-spaced over 0.1..1e8, C {len(Cs)} values over 0.25..8 (1 and 2 "
           "included); region of the published fits: B 10..1e5, C 0.5..6.", "",
           *summary(abc, Bs, Cs, "B", "C"),

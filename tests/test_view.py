@@ -154,7 +154,7 @@ def test_plan_shows_what_the_direct_renderers_show(metal):
     brdf = np.ascontiguousarray(table.brdf().T).T
     p = plan(DEFAULT_LIGHTS, 40, 24)
     fitted = Evaluator(p, model)([values])[0]
-    at_points, at_env = p.measured(brdf)
+    at_points, at_env = p.measured(p.table_values(brdf))
     meas, fit = p.images(at_points, at_env), p.images(fitted.points, fitted.env)
     for label, kind, d in DEFAULT_LIGHTS:
         size = 24 if kind == "env" else 40

@@ -45,7 +45,7 @@ def _generate(term) -> str:
     args = [s for s in (f, *CELL) if s in free]
     names = [*term.inputs, *term.const_names]
     syms = [term.symbols()[n] if n in term.inputs else sp.Symbol(n, real=True) for n in names]
-    import scipy.special            # here: importing it costs every start-up 0.1-0.2 s
+    import scipy.special  # here: importing it costs every start-up 0.1-0.2 s
     fn = sp.lambdify([*args, *syms], exprs, modules=_MODULES, cse=True)
     where = {}
     for name in fn.__code__.co_names:

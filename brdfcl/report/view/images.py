@@ -14,8 +14,6 @@ import logging
 import os
 from pathlib import Path
 
-import numpy as np
-
 from brdfcl.data.inputs import is_table
 from brdfcl.device.errors import DeviceError, ProgramError
 from brdfcl.model.compose import Model
@@ -79,8 +77,7 @@ def _pool(n):
 def _draw(rep, name, table, key, spec, fitted, read_table):
     """One material's images (brdfcl.report.view.material) and their stamp: (name, images)."""
     model, plan = Model(spec), view_plan(*PLAN)
-    brdf = np.ascontiguousarray(read_table(table).brdf().T).T
-    paths, captions = write_material(rep / name, name, brdf, model, fitted, plan)
+    paths, captions = write_material(rep / name, name, plan.table_values(read_table(table)), model, fitted, plan)
     _write_stamp(rep / name, key, captions)
     return name, _classify(paths, name, captions)
 

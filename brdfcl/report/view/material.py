@@ -6,9 +6,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
-
-from brdfcl.data.merl import MerlTable
 from brdfcl.report.view.evaluate import Evaluator, Fitted
 from brdfcl.report.view.slices import write_slice_figures
 from brdfcl.report.view.sphere import DEFAULT_LIGHTS, ENV_SIZE, as_model, write_sphere_images
@@ -29,10 +26,10 @@ def curves(plan, measured, fitted: Fitted) -> dict:
     return out
 
 
-def write_material(out_dir, name, brdf, model, fitted: Fitted, plan):
-    """Spheres, thumbnail and slices of one material (``brdf``: its (3, N_CELLS) table) with
-    its ``fitted`` values; returns (paths, {image name: caption})."""
-    at_points, at_env = plan.measured(brdf)
+def write_material(out_dir, name, values, model, fitted: Fitted, plan):
+    """Spheres, thumbnail and slices of one material (``values``: its table at the plan's cells,
+    ``Plan.table_values``) with its ``fitted`` values; returns (paths, {image name: caption})."""
+    at_points, at_env = plan.measured(values)
     measured = plan.images(at_points, at_env)
     fit = plan.images(fitted.points, fitted.env)
     lights = [(v.label, v.kind, v.light) for v in plan.spheres]
@@ -45,7 +42,6 @@ def write_images(out_dir, name, table, model, values, lights=DEFAULT_LIGHTS, siz
     """`write_material` for one fit: ``table`` a MerlTable or (3, N_CELLS) array, ``values`` a
     vector or {name: value}; the model is evaluated with ``engine`` or its float64 reference."""
     model, values = as_model(model, values)
-    brdf = np.ascontiguousarray((table.brdf() if isinstance(table, MerlTable) else table).T).T
     plan = view_plan(lights, size, env_size)
     fitted = Evaluator(plan, model, engine)([values])[0]
-    return write_material(Path(out_dir), name, brdf, model, fitted, plan)
+    return write_material(Path(out_dir), name, plan.table_values(table), model, fitted, plan)

@@ -151,11 +151,22 @@ class Plan:
         self.env_cells = np.unique(np.concatenate([v.cells for v in envs] + [np.zeros(0, dtype=np.int64)]))
         for v in envs:
             v.columns = np.searchsorted(self.env_cells, v.cells)
+        self.table_cells = np.unique(np.concatenate([self.corners[0].ravel(), self.env_cells]))
+        """Every table cell a view reads: a report gathers only these of each table."""
+        self._corners_at = (np.searchsorted(self.table_cells, self.corners[0]), self.corners[1])
+        self._env_at = np.searchsorted(self.table_cells, self.env_cells)
 
-    def measured(self, brdf):
-        """The table's values: (3, n) at ``cells`` (log-trilinear, brdfcl.report.view.lookup) and
-        (3, len(env_cells)) at ``env_cells``."""
-        return interpolate(brdf, self.corners), brdf[:, self.env_cells]
+    def table_values(self, table):
+        """A table's BRDF (3, len(table_cells)) at ``table_cells``: ``table`` a MerlTable or a
+        (3, N_CELLS) array."""
+        if hasattr(table, "brdf_at"):
+            return table.brdf_at(self.table_cells)
+        return np.asarray(table, dtype=np.float64)[:, self.table_cells]
+
+    def measured(self, values):
+        """From a table's `table_values`: (3, n) at ``cells`` (log-trilinear,
+        brdfcl.report.view.lookup) and (3, len(env_cells)) at ``env_cells``."""
+        return interpolate(values, self._corners_at), values[:, self._env_at]
 
     def images(self, at_points, at_env):
         """{label: radiance image} of every sphere, from values at ``cells`` and at ``env_cells``."""

@@ -11,7 +11,7 @@ from brdfcl.model.terms.symbols import ch, exp_clamped, t2
 
 def epd_consts(beta, p):
     """({'N': N}, {'N': {'beta': dN/dbeta, 'p': dN/dp}})."""
-    from scipy.special import gammaln, psi      # here: importing scipy.special costs every start-up 0.1 s
+    from scipy.special import gammaln, psi  # here: importing scipy.special costs every start-up 0.1 s
     N = p / (np.pi * beta * beta * np.exp(gammaln(1.0 / p)))
     return ({"N": N}, {"N": {"beta": -2.0 * N / beta, "p": N * (1.0 / p + psi(1.0 / p) / p ** 2)}})
 

@@ -18,8 +18,15 @@ section 5, for the distribution.)
 from sympy import Integer, Piecewise, exp, log, pi, sqrt
 
 from brdfcl.model.terms.base import Term, register
-from brdfcl.model.terms.shadowing.smith import (CITE, SERIES_TERMS, SeriesLambda, correlated, expm1,
-                                                lambda_from_density, separable)
+from brdfcl.model.terms.shadowing.smith import (
+    CITE,
+    SERIES_TERMS,
+    SeriesLambda,
+    correlated,
+    expm1,
+    lambda_from_density,
+    separable,
+)
 from brdfcl.model.terms.symbols import log1p
 
 _SERIES_BELOW = 1e-6

@@ -21,8 +21,15 @@ bench/lambda_gtr.py (bench/results/lambda_gtr.md), over the whole box alpha 1e-4
 from sympy import Piecewise, exp, log, pi
 
 from brdfcl.model.terms.base import Term, register
-from brdfcl.model.terms.shadowing.smith import (CITE, SERIES_TERMS, SeriesLambda, correlated, expm1,
-                                                lambda_from_density, separable)
+from brdfcl.model.terms.shadowing.smith import (
+    CITE,
+    SERIES_TERMS,
+    SeriesLambda,
+    correlated,
+    expm1,
+    lambda_from_density,
+    separable,
+)
 from brdfcl.model.terms.shadowing.smith_ggx import lambda_ggx
 
 
