@@ -13,9 +13,10 @@ import json
 import time
 
 import numpy as np
+import pytest
 
 from brdfcl.data.geometry import table_geometry
-from brdfcl.device.engine import select_cells
+from brdfcl.device.engine import Engine, select_cells
 from brdfcl.model.compose import Model
 from brdfcl.model.lobes.cells import Cells
 from brdfcl.model.synth import DEMO, demo_values
@@ -127,3 +128,17 @@ def test_flags_fire_on_non_physical_fit():
     assert len(lines) == 2
     assert "albedo above 1" in lines[0] and "channel r" in lines[0]
     assert lines[1].startswith("ct.alpha = 0.0001 at its lower bound")
+
+
+def test_albedo_on_the_engine_is_the_reference():
+    """The assessment's albedo of every fit in one predict launch matches the float64 reference."""
+    try:
+        engine = Engine("diffuse+diffraction:hp:none+gtr:smith:dielectric")
+    except Exception as e:          # noqa: BLE001 - no device builds here
+        pytest.skip(f"no OpenCL device: {e}")
+    m = engine.model
+    rng = np.random.default_rng(3)
+    x = m.search_x_lo + rng.random((5, m.n_free)) * (m.search_x_hi - m.search_x_lo)
+    v = np.stack([m.from_x(r) for r in x])
+    ref = directional_albedo(m, v)
+    assert np.max(np.abs(directional_albedo(m, v, engine=engine) / ref - 1)) < 1e-5

@@ -14,7 +14,9 @@ to 1e-6; a GGX lobe with F = 1, alpha = 1e-3 gives 0.99999 at normal incidence.
 from __future__ import annotations
 
 import math
+import weakref
 from collections.abc import Sequence
+from functools import lru_cache
 
 import numpy as np
 
@@ -49,19 +51,44 @@ def albedo_cells(theta_i: float) -> tuple[Cells, np.ndarray]:
     return cells, weight
 
 
-def directional_albedo(model: Model, values: np.ndarray,
-                       theta_i_deg: Sequence[float] = ALBEDO_THETA_DEG) -> np.ndarray:
-    """Directional albedo (n, angles, channels) of the model at each value vector (n, n_params):
-    every angle's cells in one reference evaluation per vector."""
-    values = np.atleast_2d(np.asarray(values, dtype=np.float64))
+@lru_cache(maxsize=4)
+def _quadrature(theta_i_deg: tuple) -> tuple[Cells, np.ndarray, np.ndarray]:
+    """Every angle's cells in one set: (Cells, weight x cos theta_o, the angle of each cell)."""
     parts = [albedo_cells(math.radians(t)) for t in theta_i_deg]
     cells = Cells(*(np.concatenate([getattr(c, k) for c, _ in parts]) for k in ("sh", "ch", "cd", "ci", "co")))
     wq = np.concatenate([w * np.maximum(c.co, 0.0) for c, w in parts])
-    angle = np.repeat(np.arange(len(parts)), [len(c) for c, _ in parts])
-    out = np.zeros((values.shape[0], len(theta_i_deg), model.n_channels))
-    for i, v in enumerate(values):
-        p = model.reference(cells, v, jacobian=False)
-        terms = np.where(np.isfinite(p), p, 0.0) * wq
-        for j in range(len(parts)):
-            out[i, j] = np.sum(terms[:, angle == j], axis=1)
-    return out
+    return cells, wq, np.repeat(np.arange(len(parts)), [len(c) for c, _ in parts])
+
+
+_SETS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+CHUNK = 256                               # fits per predict launch (its output: CHUNK x C x cells)
+
+
+def _on_engine(engine, theta_i_deg: tuple, values: np.ndarray) -> np.ndarray:
+    """Model values (n, C, cells) of the quadrature on a compiled Engine, its cells uploaded once."""
+    cells, _, _ = _quadrature(theta_i_deg)
+    sets = _SETS.setdefault(engine, {})
+    if theta_i_deg not in sets:
+        n = len(cells)
+        sets[theta_i_deg] = engine.upload_samples(["albedo"], [cells], [np.ones(n)],
+                                                  [np.zeros((engine.model.n_channels, n))])
+    cs = sets[theta_i_deg]
+    return np.concatenate([engine.predict(cs, values[s:s + CHUNK], 0).astype(np.float64)
+                           for s in range(0, len(values), CHUNK)])
+
+
+def directional_albedo(model: Model, values: np.ndarray,
+                       theta_i_deg: Sequence[float] = ALBEDO_THETA_DEG, engine=None) -> np.ndarray:
+    """Directional albedo (n, angles, channels) of the model at each value vector (n, n_params):
+    with ``engine`` (a compiled Engine of ``model``) every fit in one launch of its predict
+    kernel, else the float64 reference, one evaluation per vector."""
+    values = np.atleast_2d(np.asarray(values, dtype=np.float64))
+    theta_i_deg = tuple(float(t) for t in theta_i_deg)
+    cells, wq, angle = _quadrature(theta_i_deg)
+    if engine is not None:
+        p = _on_engine(engine, theta_i_deg, values)
+    else:
+        p = np.stack([model.reference(cells, v, jacobian=False) for v in values]) if len(values) else \
+            np.zeros((0, model.n_channels, len(cells)))
+    terms = np.where(np.isfinite(p), p, 0.0) * wq
+    return np.stack([terms[:, :, angle == j].sum(axis=2) for j in range(len(theta_i_deg))], axis=1)

@@ -100,7 +100,7 @@ def _assess(objective, target, data, values, rows, at_bound):
                               at_bound=[at_bound[j] for j in sel], extra_hessian=None if extra is None else extra[sel])
         for j, u in zip(sel, got):
             unc[j] = u
-    alb = directional_albedo(model, np.where(finite[:, None], values, model.defaults()))
+    alb = directional_albedo(model, np.where(finite[:, None], values, model.defaults()), engine=objective.engine)
     out = []
     for j in range(len(rows)):
         if not finite[j]:
