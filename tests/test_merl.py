@@ -5,7 +5,17 @@ import tracemalloc
 import numpy as np
 import pytest
 
-from brdfcl.data.merl import FILE_SIZE, N_CELLS, SCALE, MerlError, read_database, read_merl, read_merl_at, write_merl
+from brdfcl.data.merl import (
+    FILE_SIZE,
+    N_CELLS,
+    SCALE,
+    MerlError,
+    read_database,
+    read_merl,
+    read_merl_at,
+    read_merl_cells,
+    write_merl,
+)
 
 
 def test_proxy_round_trip_is_identical(proxy_pair, tmp_path):
@@ -48,6 +58,9 @@ def test_missing_values_counted_and_scaled(tmp_path):
     ok = t.valid
     np.testing.assert_allclose(t.brdf()[:, ok], 0.25, rtol=1e-15)
     assert t.stored[0, 0] == pytest.approx(0.25 / SCALE[0])
+    cells = np.array([0, 10, 20, 30, 40, 50, N_CELLS - 1])            # a few cells, without the table
+    for _ in range(2):                                                # the second read reuses the buffer
+        np.testing.assert_array_equal(read_merl_cells(tmp_path / "b.binary", cells), t.brdf_at(cells))
 
 
 @pytest.mark.parametrize("content, message", [

@@ -35,9 +35,10 @@ def _key(e):
     return f"{e.model}|{sorted(e.params.items())}|{os.path.getmtime(e.table)}"
 
 
-def draw_images(rep, entries, read_table, engine=None) -> dict:
+def draw_images(rep, entries, read_cells, engine=None) -> dict:
     """{name: images} of every entry with a measurement: kept in ``rep/NAME/`` when newer than
-    its table and fit, else drawn, the fits of one model evaluated together (CHUNK at a time)."""
+    its table and fit, else drawn, the fits of one model evaluated together (CHUNK at a time);
+    ``read_cells(path, index)``: a table's BRDF (3, len(index)) at the views' cells."""
     out: dict = {}
     todo: dict[str, list] = {}
     for e in entries:
@@ -61,7 +62,7 @@ def draw_images(rep, entries, read_table, engine=None) -> dict:
             for first in range(0, len(group), CHUNK):
                 part = group[first:first + CHUNK]
                 fitted = evaluate([[e.params[n] for n in model.names] for e in part])
-                drawn += [pool.submit(_draw, rep, e.name, e.table, _key(e), spec, f, read_table)
+                drawn += [pool.submit(_draw, rep, e.name, e.table, _key(e), spec, f, read_cells)
                           for e, f in zip(part, fitted)]
         out.update(f.result() for f in drawn)
     return out
@@ -74,10 +75,10 @@ def _pool(n):
     return Drawers(DRAW_PROCESSES) if n >= PER_WORKER * DRAW_PROCESSES and DRAW_PROCESSES > 1 else InProcess()
 
 
-def _draw(rep, name, table, key, spec, fitted, read_table):
+def _draw(rep, name, table, key, spec, fitted, read_cells):
     """One material's images (brdfcl.report.view.material) and their stamp: (name, images)."""
     model, plan = Model(spec), view_plan(*PLAN)
-    paths, captions = write_material(rep / name, name, plan.table_values(read_table(table)), model, fitted, plan)
+    paths, captions = write_material(rep / name, name, read_cells(table, plan.table_cells), model, fitted, plan)
     _write_stamp(rep / name, key, captions)
     return name, _classify(paths, name, captions)
 

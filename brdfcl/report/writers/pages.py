@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from brdfcl.data.merl import read_merl
+from brdfcl.data.merl import read_merl_cells
 from brdfcl.report.output import read_results
 from brdfcl.report.writers.analysis_figures import figure_paths
 from brdfcl.report.writers.base import FIT, Item, Job, Writer
@@ -39,6 +39,6 @@ class ReportPages(Writer):
             title = f"brdfcl analysis of {len(entries)} materials"
         job.log(f"report: the pages of {len(entries)} material{'s' if len(entries) != 1 else ''} "
                 f"(images drawn where a fit or table changed)")
-        index = write_report(job.out, entries, read_merl, title=title, engine=job.engine)
+        index = write_report(job.out, entries, read_merl_cells, title=title, engine=job.engine)
         job.log(f"report: {index}")
         return index
