@@ -181,3 +181,14 @@ class SeriesLambda:
         for c in reversed(self.host):
             series = p[c] + x * series
         return self.base(d, **{k: p[k] for k in self.inputs}) + series / d.cos
+
+
+def register_series(series: SeriesLambda, ndf: str, cite: str) -> None:
+    """Register the separable (``smith_NDF``) and height-correlated (``smith_NDF_hc``) Smith terms
+    of a series Lambda, for the distribution ``ndf``."""
+    from brdfcl.model.terms.base import Term, register
+    doc = f"Smith for {ndf.upper()}, exact Lambda as a {SERIES_TERMS}-term series"
+    for suffix, form, kind in (("", separable, "separable"), ("_hc", correlated, "height-correlated")):
+        register(Term("shadowing", f"smith_{ndf}{suffix}", (), form(series), uses=series.inputs, ndfs=(ndf,),
+                      host=series.host, host_consts=series.host_consts, cite=cite, doc=f"{kind} {doc}",
+                      origin=series.rule.origin))

@@ -17,15 +17,12 @@ section 5, for the distribution.)
 """
 from sympy import Integer, Piecewise, exp, log, pi, sqrt
 
-from brdfcl.model.terms.base import Term, register
 from brdfcl.model.terms.shadowing.smith import (
     CITE,
-    SERIES_TERMS,
     SeriesLambda,
-    correlated,
     expm1,
     lambda_from_density,
-    separable,
+    register_series,
 )
 from brdfcl.model.terms.symbols import log1p
 
@@ -51,7 +48,4 @@ def abc_lambda(d, n, B, C):
 
 LAMBDA_ABC = SeriesLambda("smith_abc", ("B", "C"), lambda d, B, C: Integer(0), abc_lambda, __name__)
 CITE_ABC = CITE + "; Low et al. 2012 (ABC)"
-_DOC = f"Smith for ABC, exact Lambda as a {SERIES_TERMS}-term series"
-for _name, _form, _kind in (("smith_abc", separable, "separable"), ("smith_abc_hc", correlated, "height-correlated")):
-    register(Term("shadowing", _name, (), _form(LAMBDA_ABC), uses=LAMBDA_ABC.inputs, ndfs=("abc",),
-                  host=LAMBDA_ABC.host, host_consts=LAMBDA_ABC.host_consts, cite=CITE_ABC, doc=f"{_kind} {_DOC}"))
+register_series(LAMBDA_ABC, "abc", CITE_ABC)

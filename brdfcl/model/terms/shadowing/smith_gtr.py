@@ -20,15 +20,12 @@ bench/lambda_gtr.py (bench/results/lambda_gtr.md), over the whole box alpha 1e-4
 """
 from sympy import Piecewise, exp, log, pi
 
-from brdfcl.model.terms.base import Term, register
 from brdfcl.model.terms.shadowing.smith import (
     CITE,
-    SERIES_TERMS,
     SeriesLambda,
-    correlated,
     expm1,
     lambda_from_density,
-    separable,
+    register_series,
 )
 from brdfcl.model.terms.shadowing.smith_ggx import lambda_ggx
 
@@ -53,7 +50,4 @@ def gtr_correction(d, n, alpha, gamma):
 LAMBDA_GTR = SeriesLambda("smith_gtr", ("alpha", "gamma"), lambda d, alpha, gamma: lambda_ggx(d, alpha),
                           gtr_correction, __name__)
 CITE_GTR = CITE + "; Burley 2012 (GTR)"
-_DOC = f"Smith for GTR, exact Lambda as a {SERIES_TERMS}-term series"
-for _name, _form, _kind in (("smith_gtr", separable, "separable"), ("smith_gtr_hc", correlated, "height-correlated")):
-    register(Term("shadowing", _name, (), _form(LAMBDA_GTR), uses=LAMBDA_GTR.inputs, ndfs=("gtr",),
-                  host=LAMBDA_GTR.host, host_consts=LAMBDA_GTR.host_consts, cite=CITE_GTR, doc=f"{_kind} {_DOC}"))
+register_series(LAMBDA_GTR, "gtr", CITE_GTR)
