@@ -1,5 +1,6 @@
-"""docs/api.md runs as written: its ```python blocks, in order and sharing one namespace (as one
-script, ``__name__ == "__main__"``), on one material of the synthetic demo database.
+"""docs/api.md runs as written: each of its ```python blocks on its own, in a fresh namespace (as
+one script, ``__name__ == "__main__"``), in page order, on one material of the synthetic demo
+database (what `brdfcl synth merl/` writes, as the page says).
 
 The only changes to the page's code are those of ``substitutions()``; each must occur in the
 page, so a change to the page's examples breaks this test rather than skipping its block.
@@ -24,7 +25,7 @@ MATERIAL = "synth-smooth-metal"        # has a diffraction lobe: every block has
 
 def substitutions(db):
     """(as written in the page, what the test runs instead)."""
-    subs = [('"merl/brass.binary"', repr(str(db / f"{MATERIAL}.binary"))),
+    subs = [(f'"merl/{MATERIAL}.binary"', repr(str(db / f"{MATERIAL}.binary"))),
             ('"merl/"', repr(f"{db}/")),
             ('Client("tcp://scheduler:8786")', "brdfcl.app.cluster.make_client(workers=1)")]
     try:
@@ -48,7 +49,7 @@ def check_one_material(ns, work):
 
 def check_evaluate(ns, work):
     assert ns["rgb"].shape == (3, 1) and np.isfinite(ns["rgb"]).all() and (ns["rgb"] > 0).all()
-    assert (work / "brass-fit.binary").stat().st_size == FILE_SIZE
+    assert (work / f"{MATERIAL}-fit.binary").stat().st_size == FILE_SIZE
 
 
 def check_database(ns, work):
@@ -93,14 +94,19 @@ def test_api_page_examples_run(demo_db, tmp_path, monkeypatch):
     db.mkdir()
     (db / f"{MATERIAL}.binary").symlink_to(demo_db / f"{MATERIAL}.binary")
     text = PAGE.read_text()
+    # every fenced block of the page is a python block, so none escapes this test
+    fences, python = len(re.findall(r"^```", text, re.M)), len(re.findall(r"^```python$", text, re.M))
+    assert fences == 2 * python, "docs/api.md has a fenced block that is not ```python: this test would not run it"
     for old, new in substitutions(db):
         assert old in text, f"docs/api.md no longer has {old}: update this test's substitutions"
         text = text.replace(old, new)
     blocks = python_blocks(text)
     assert len(blocks) == len(CHECKS), f"docs/api.md has {len(blocks)} python blocks, this test checks {len(CHECKS)}"
-    ns = {"__name__": "__main__"}
+    spaces = []
     try:
         for (line, code), check in zip(blocks, CHECKS):
+            ns = {"__name__": "__main__"}           # each example runs on its own
+            spaces.append(ns)
             # the cluster block writes fits/ as the database block did: a fresh folder, so that it fits
             work = tmp_path / ("cluster" if check is check_cluster else "work")
             work.mkdir(exist_ok=True)
@@ -109,9 +115,10 @@ def test_api_page_examples_run(demo_db, tmp_path, monkeypatch):
             exec(compile("\n" * (line - 1) + code, str(PAGE), "exec"), ns)
             check(ns, work)
     finally:
-        client = ns.get("client")
-        if client is not None and client.status != "closed":
-            client.close()
+        for ns in spaces:
+            client = ns.get("client")
+            if client is not None and client.status != "closed":
+                client.close()
 
 
 def test_submodules_are_attributes_of_a_bare_import():
