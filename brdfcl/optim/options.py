@@ -28,7 +28,7 @@ class FitOptions:
     local_maxeval: int = 200        # per local search (lds) / whole search (mlsl, crs2: x 10)
     coarse_stride: int = 300        # coarse set: every n-th cell outside the peak region,
     coarse_peak_bins: int = 8       # every peak_stride-th cell with theta_h index below peak_bins
-    coarse_peak_stride: int = 40    # 5528 cells; 40 and 300, not 5 and 97: README "Fitting a database"
+    coarse_peak_stride: int = 40    # 5528 cells; 40 and 300, not 5 and 97: docs/fitting.md "The search"
     lm: LMOptions = field(default_factory=LMOptions)
     preview_stride: int = 8         # > 1: LM first on every n-th cell of the table, to convergence,
     preview_final_iter: int = 10    # then at most this many iterations on the full table (1: off)
