@@ -177,9 +177,9 @@ def runtime_name(eng) -> str:
 def sample_data(paths, n_mat):
     """(names, values (n, 3, cells) float64 at the fitted cells) of the first ``n_mat`` files: the
     materials of the per-kernel roofline and of the runtime comparison, read once for both."""
-    from brdfcl.data.inputs import FileReader
+    from brdfcl.data.merl import MerlFile
     from brdfcl.device.engine import extract
-    names, (data,) = extract([FileReader(p) for p in paths[:n_mat]], [select_cells()], np.float64)
+    names, (data,) = extract([MerlFile(p) for p in paths[:n_mat]], [select_cells()], np.float64)
     return names, data
 
 
@@ -486,7 +486,7 @@ def scattered_throughput(args, merl_rate, n_mat):
     model = Model(args.model, lambdas=tuple(s.wavelengths))
     eng = Engine(model, device=args.device, real="float", metric=args.metric)
     w, v = s.weights_within(80.0)[ok], s.values[ok].T
-    cs = eng.upload_samples([f"{s.name}{i}" for i in range(n_mat)], [cells] * n_mat, [w] * n_mat, [v] * n_mat)
+    cs = eng.upload_cells([f"{s.name}{i}" for i in range(n_mat)], [cells] * n_mat, [w] * n_mat, [v] * n_mat)
     V = np.tile(model.defaults(), (n_mat, 1))
     mats = np.arange(n_mat)
     eng.grad(cs, V, mats)

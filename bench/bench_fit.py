@@ -36,7 +36,7 @@ from brdfcl.data.merl import read_merl
 from brdfcl.device.cellsets import select_cells
 from brdfcl.model.compose import DEFAULT_MODEL, Model
 from brdfcl.model.metrics import errors, transform
-from brdfcl.optim.fit import FitOptions, Fitter, load_batch
+from brdfcl.optim.fit import FitOptions, Fitter
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_eval import proxy_dir  # noqa: E402
@@ -67,9 +67,9 @@ class Recorder:
 
 def run_brdfcl(paths, setting, kw, model, metric):
     f = Fitter(FitOptions(model=model, metric=metric, **kw))
-    names, full, coarse = load_batch([read_merl(p) for p in paths], f)
+    loaded = f.load([read_merl(p) for p in paths])
     t0 = time.perf_counter()
-    res = f.fit(names, full, coarse)
+    res = f.fit_loaded(loaded)
     total = time.perf_counter() - t0
     recs = []
     for r in res:

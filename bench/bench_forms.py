@@ -32,7 +32,7 @@ import compare_published as cp  # noqa: E402
 
 from brdfcl import __version__  # noqa: E402
 from brdfcl.data.merl import list_database, read_merl  # noqa: E402
-from brdfcl.optim.fit import FitOptions, Fitter, load_batch  # noqa: E402
+from brdfcl.optim.fit import FitOptions, Fitter  # noqa: E402
 from brdfcl.optim.forms import abc_from_gtr, dielectric_from_schlick, warm_start  # noqa: E402
 from brdfcl.optim.selection import select  # noqa: E402
 
@@ -62,12 +62,13 @@ def main(argv=None) -> int:
     paths = [Path(p) for p in list_database(args.data)]
     fitters = {k: Fitter(FitOptions(model=spec)) for k, (spec, _, _) in FORMS.items()}
     tables = [read_merl(p) for p in paths]
-    names, full, coarse = load_batch(tables, fitters["ggx"])
+    loaded = fitters["ggx"].load(tables)
+    names = loaded.names
     results, seconds = {}, {}
     for k, (_, warm, convert) in FORMS.items():
         t = time.perf_counter()
         start = convert(results[warm], fitters[k].model) if warm else None
-        results[k] = fitters[k].fit(names, full, coarse, start=start)
+        results[k] = fitters[k].fit_loaded(loaded, start=start)
         seconds[k] = time.perf_counter() - t
         print(f"{k}: {seconds[k]:.1f} s", flush=True)
     specs = {k: f.model.spec for k, f in fitters.items()}

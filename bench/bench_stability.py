@@ -25,7 +25,7 @@ from brdfcl.data.merl import read_merl, write_merl
 from brdfcl.device.engine import Engine, select_cells
 from brdfcl.model.compose import DEFAULT_MODEL, Model
 from brdfcl.model.synth import demo_values, tabulate
-from brdfcl.optim.fit import FitOptions, Fitter, load_batch
+from brdfcl.optim.fit import FitOptions, Fitter
 
 HERE = Path(__file__).resolve().parent
 PROXY = ["chrome", "specular-black-phenolic", "aluminium", "white-diffuse-bball", "black-soft-plastic"]
@@ -97,8 +97,7 @@ def fit_checks(paths, spec, cutoff):
     res = {}
     for real in ("float", "double"):
         f = Fitter(FitOptions(model=spec, real=real, cutoff_deg=cutoff))
-        names, full, coarse = load_batch([read_merl(p) for p in paths], f)
-        res[real] = {r.name: r for r in f.fit(names, full, coarse)}
+        res[real] = {r.name: r for r in f.fit([read_merl(p) for p in paths])}
     for name in res["float"]:
         a, b = res["float"][name], res["double"][name]
         finite = all(np.isfinite(v) for r in (a, b) for v in list(r.params.values()) + list(r.errors.values()))

@@ -79,9 +79,7 @@ def child(spawned: float, out_json: str, argv: list[str]) -> None:
         marks.setdefault("first launch", time.time())
     timed(engine_mod.Engine, "_run", "kernels", before=first_launch)
     timed(engine_mod.Engine, "__init__", "engines (generation, build, self-test)")
-    timed(runner.Runner, "load", "read + extract")
-    timed(fit_mod.Fitter, "targets", "upload")
-    timed(fit_mod.Fitter, "sample_targets", "upload")
+    timed(fit_mod.Fitter, "load", "read + upload")
     timed(forms_mod, "assess", "assessment of the chosen fits")
     timed(runner.Runner, "finish", "report pages and summary")
     timed(fit_mod, "global_search", "global search")
@@ -118,7 +116,7 @@ def device_name() -> str:
 
 ORDER = ("interpreter start", "imports", "start-up to the first kernel launch",
          "engines (generation, build, self-test)",
-         "read + extract", "upload", "global search", "local search", "assessment of the chosen fits",
+         "read + upload", "global search", "local search", "assessment of the chosen fits",
          "report pages and summary", "kernels", "total (whole process)")
 
 

@@ -34,7 +34,7 @@ from brdfcl.device.engine import Engine, select_cells
 from brdfcl.model.compose import DEFAULT_MODEL, Model
 from brdfcl.model.lobes.cells import Cells
 from brdfcl.model.metrics import errors
-from brdfcl.optim.fit import FitOptions, Fitter, load_batch
+from brdfcl.optim.fit import FitOptions, Fitter
 from brdfcl.optim.forms import DEFAULT_FORMS, FormFitter, form_keys, resolve
 
 PUBLISHED = ("sgd_bagher2012", "abc_low2012_microfacet_e2", "abc_low2012_smooth_e2")
@@ -53,12 +53,9 @@ def fit_database(tables: list, spec: str) -> tuple[dict[str, tuple[str, np.ndarr
     t0 = time.perf_counter()
     if spec == DEFAULT:
         ff = FormFitter(FitOptions(), form_keys(DEFAULT_MODEL, resolve("default", FitOptions())))
-        names, full, coarse = load_batch(tables, ff.loader)
-        res = [r for r, _ in ff.fit(names, full, coarse)]
+        res = [r for r, _ in ff.fit(tables)]
     else:
-        f = Fitter(FitOptions(model=spec))
-        names, full, coarse = load_batch(tables, f)
-        res = f.fit(names, full, coarse)
+        res = Fitter(FitOptions(model=spec)).fit(tables)
     seconds = time.perf_counter() - t0
     return {r.name: (r.model, np.array([r.params[n] for n in Model(r.model).names])) for r in res}, seconds
 

@@ -80,7 +80,7 @@ def test_pyopencl_error_in_a_task_is_readable(db, monkeypatch):
         pickle.dumps(e)
     assert describe_error(e) == "pyopencl.LogicError: create_buffer failed: INVALID_BUFFER_SIZE"
 
-    def failing_fitter(opts):
+    def failing_fitter(opts, **kw):
         raise e
     monkeypatch.setattr(brdfcl.optim.fit, "Fitter", failing_fitter)
     monkeypatch.setattr(brdfcl.app.cluster, "_WORKER_FITTERS", {})

@@ -11,6 +11,7 @@ from brdfcl.data import readers
 from brdfcl.data.cornell import read_cornell
 from brdfcl.data.csvsamples import read_csv, write_csv
 from brdfcl.data.errors import DataError
+from brdfcl.data.merl import MerlError
 from brdfcl.data.readers import READERS, find_measurements, read_samples
 from brdfcl.data.samples import Channel, make_samples, rgb_channels
 from brdfcl.data.weights import DOMAIN_MEASURE
@@ -270,8 +271,12 @@ def test_registry_and_find_measurements(tmp_path, monkeypatch):
     (tmp_path / ".hidden.csv").write_text("x")
     (tmp_path / "table.binary").write_bytes(b"\x00")
     (tmp_path / "sub.csv").mkdir()
-    assert [p.name for p in find_measurements(tmp_path)] == ["B.CSV", "a.brdf"]
-    assert [read_samples(p).n_channels for p in find_measurements(tmp_path)] == [2, 3]
+    assert [p.name for p in find_measurements(tmp_path)] == ["B.CSV", "a.brdf", "sub.csv", "table.binary"]
+    assert [read_samples(p).n_channels for p in find_measurements(tmp_path)[:2]] == [2, 3]
+    with pytest.raises(DataError, match="is a folder"):
+        read_samples(tmp_path / "sub.csv")
+    with pytest.raises(MerlError, match="not a MERL file"):
+        read_samples(tmp_path / "table.binary")
     # the hook: registering a suffix is all a new format takes
     seen = []
 
@@ -280,7 +285,7 @@ def test_registry_and_find_measurements(tmp_path, monkeypatch):
         return read_cornell(tmp_path / "a.brdf")
 
     monkeypatch.setitem(READERS, ".binary", fake)
-    assert [p.name for p in find_measurements(tmp_path)] == ["B.CSV", "a.brdf", "table.binary"]
+    assert [p.name for p in find_measurements(tmp_path)] == ["B.CSV", "a.brdf", "sub.csv", "table.binary"]
     assert read_samples(str(tmp_path / "table.binary")).n_samples == 2 and seen == [tmp_path / "table.binary"]
     monkeypatch.setitem(READERS, ".gz", fake)
     monkeypatch.setitem(READERS, ".brdf.gz", read_cornell)

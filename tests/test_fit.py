@@ -9,13 +9,11 @@ import pytest
 
 from brdfcl.app.run import fit_all
 from brdfcl.data.merl import read_merl
-from brdfcl.optim.fit import FitOptions, Fitter, load_batch
+from brdfcl.optim.fit import FitOptions, Fitter
 
 
 def _fit(paths, **kw):
-    f = Fitter(FitOptions(**kw))
-    names, full, coarse = load_batch([read_merl(p) for p in paths], f)
-    return f.fit(names, full, coarse)
+    return Fitter(FitOptions(**kw)).fit([read_merl(p) for p in paths])
 
 
 def test_recovers_every_demo_parameter(demo_db):
@@ -94,14 +92,14 @@ def test_warm_start_skips_the_global_stage_and_recovers(demo_db):
     """``Fitter.fit(start=...)``: the local stage from given values, no global search."""
     t = json.loads((demo_db / "truth.json").read_text())["materials"]["synth-smooth-plastic"]
     f = Fitter(FitOptions(model=t["model"]))
-    names, full, coarse = load_batch([read_merl(demo_db / "synth-smooth-plastic.binary")], f)
+    tables = [read_merl(demo_db / "synth-smooth-plastic.binary")]
     truth = np.array([t["params"].get(n, np.nan) for n in f.model.names])
     assert np.isfinite(truth).all()
     start = truth * np.where(np.arange(truth.size) % 2, 1.25, 0.8)       # every parameter 20-25% off
-    (r,) = f.fit(names, full, coarse, start=start[None])
-    (cold,) = Fitter(FitOptions(model=t["model"])).fit(names, full, coarse)
+    (r,) = f.fit(tables, start=start[None])
+    (cold,) = Fitter(FitOptions(model=t["model"])).fit(tables)
     assert r.success and r.nfev < cold.nfev / 5                       # the global stage's evaluations skipped
     for k, v in t["params"].items():
         assert r.params[k] == pytest.approx(v, rel=0.01), k
     with pytest.raises(ValueError, match="start values of shape"):
-        f.fit(names, full, coarse, start=truth[None, :-1])
+        f.fit(tables, start=truth[None, :-1])

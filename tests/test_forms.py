@@ -73,7 +73,7 @@ def test_the_true_form_of_each_synthetic_material_is_chosen():
     samples = [_material(form, seed) for seed, form in enumerate(TRUTH)]
     specs = form_variants("diffuse+ggx:smith:schlick", ("ggx", "gtr", "beckmann"), ("schlick", "dielectric"))
     assert len(specs) == 6
-    chosen = FormFitter(FitOptions(), specs, lambdas=LAMBDAS).fit_samples(samples)
+    chosen = FormFitter(FitOptions(), specs, lambdas=LAMBDAS).fit(samples)
     for s, (res, record) in zip(samples, chosen):
         pen = {k: round(v["penalised"], 5) for k, v in record["form_errors"].items()}
         assert record["form"] == s.name and res.model == specs[s.name] and res.name == s.name, (s.name, pen)

@@ -4,7 +4,7 @@ import numpy as np
 from brdfcl.analysis.analyze import peak_share
 from brdfcl.data.merl import read_merl
 from brdfcl.model.compose import Model
-from brdfcl.optim.fit import FitOptions, Fitter, load_batch
+from brdfcl.optim.fit import FitOptions, Fitter
 from brdfcl.optim.peak_order import PeakOrder
 
 
@@ -45,8 +45,7 @@ def test_fit_gives_the_peak_to_cook_torrance():
     out = {}
     for flag in (False, True):
         f = Fitter(FitOptions(ct_peak=flag))
-        names, full, coarse = load_batch([read_merl(path)], f)
-        (r,) = f.fit(names, full, coarse)
+        (r,) = f.fit([read_merl(path)])
         assert r.success, r.status
         out[flag] = r
     m = Model(out[True].model)

@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 from brdfcl.device import buildcheck, buildlog, cpu, runtimes, width
-from brdfcl.device.platforms import all_devices, check, pick_device, preference
+from brdfcl.device.platforms import all_devices, check, pick_device, preference, short_name
 from tests.runtimes import building
 
 LONGEST = 200
@@ -185,7 +185,7 @@ def test_a_program_that_fails_to_build_is_one_line_naming_model_device_and_log(m
     msg = str(e.value)
     assert "\n" not in msg and len(msg) <= LONGEST, msg
     assert msg.startswith("diffuse+diffraction") and "error: this kernel" in msg
-    assert pick_device()[1].name in msg
+    assert short_name(pick_device()[1]) in msg
     try:
         log = Path(msg.rsplit("(build log: ", 1)[1].rstrip(")")).expanduser()
         assert "this kernel is broken because because" in log.read_text()

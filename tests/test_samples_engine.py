@@ -25,7 +25,7 @@ def _reference(model, cells, vals, w, values):
 def _check(model, cells, weights, values, real="float", tol=2e-5):
     eng = Engine(model, real=real)
     names = [f"m{i}" for i in range(len(cells))]
-    cs = eng.upload_samples(names, cells, weights, values)
+    cs = eng.upload_cells(names, cells, weights, values)
     m = model
     V = np.stack([m.defaults(), m.from_x(m.search_x_lo + 0.3 * (m.search_x_hi - m.search_x_lo)),
                   m.from_x(m.search_x_lo + 0.7 * (m.search_x_hi - m.search_x_lo))])
@@ -63,7 +63,7 @@ def test_channel_count_must_match_the_model():
     eng = Engine(model)
     c = Cells.from_directions(_directions(np.random.default_rng(1), 20), _directions(np.random.default_rng(2), 20))
     with pytest.raises(ValueError, match="3 channels, but the model has 2"):
-        eng.upload_samples(["x"], [c], [np.ones(20)], [np.ones((3, 20))])
+        eng.upload_cells(["x"], [c], [np.ones(20)], [np.ones((3, 20))])
 
 
 def test_krylon_31_bands(krylon):

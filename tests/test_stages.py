@@ -5,7 +5,7 @@ import pytest
 
 from brdfcl.data.merl import read_merl
 from brdfcl.model.compose import Model
-from brdfcl.optim.fit import FitOptions, Fitter, load_batch
+from brdfcl.optim.fit import FitOptions, Fitter
 from brdfcl.optim.result import StageResult
 from brdfcl.optim.search import global_search, pick_starts
 from brdfcl.optim.spaces import Spaces
@@ -36,15 +36,15 @@ def test_spaces_round_trip_and_chain_rule():
 @pytest.fixture(scope="module")
 def constrained(demo_db):
     f = Fitter(FitOptions(ct_peak=True, n_candidates=32, n_starts=2))
-    names, full, coarse = load_batch([read_merl(demo_db / f"{MATERIAL}.binary")], f)
-    return f, names, full, coarse
+    b = f.load([read_merl(demo_db / f"{MATERIAL}.binary")])
+    return f, b
 
 
 def test_global_search_and_pick_starts_alone_with_the_peak_constraint(constrained):
     """Each stage called on its own, the constraint on (they once needed state only fit() set):
     scipy-style results, the penalty in their losses, and the start the pipeline itself takes."""
-    f, names, full, coarse = constrained
-    t = f.targets(names, full, coarse)
+    f, b = constrained
+    t, names = b.targets, b.names
     found = global_search(f.objective, t.coarse, names=names, options=f.opts)
     assert isinstance(found, StageResult)
     assert found.x.shape == (1 + f.opts.n_starts, f.model.n_free) and (found.mat == 0).all()
@@ -60,7 +60,7 @@ def test_global_search_and_pick_starts_alone_with_the_peak_constraint(constraine
     # picked there: its first history entry, the preview's estimate of the full table's error
     assert t.preview is not None
     ranked = pick_starts(f.objective, t.preview, found, n_materials=1)
-    (res,) = f.fit(names, full, coarse)
+    (res,) = f.fit_loaded(b)
     assert res.history[0][1] == "global"
     assert res.history[0][2] == float(np.sqrt(f.objective.loss(t.preview, ranked.x, np.arange(1))[0] / t.full.scale[0]))
     assert res.history[0][2] == pytest.approx(float(np.sqrt(ranked.fun[0] / t.full.scale[0])), rel=1e-12)
@@ -69,8 +69,8 @@ def test_global_search_and_pick_starts_alone_with_the_peak_constraint(constraine
 def test_objective_forms_agree(constrained):
     """Loss, gradient (x) and Gauss-Newton (y) forms of the penalised loss give the same loss, and
     the penalty's Hessian is J^T J of its residuals."""
-    f, names, full, coarse = constrained
-    t = f.targets(names, full, coarse)
+    f, b = constrained
+    t = b.targets
     obj, sp = f.objective, f.objective.spaces
     x = sp.default_x(1)
     v = sp.values(x)

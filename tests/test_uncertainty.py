@@ -15,14 +15,15 @@ import time
 import numpy as np
 import pytest
 
-from brdfcl.data.geometry import table_geometry
+from brdfcl.data.geometry import TableLayout, coarse_cells, table_geometry
+from brdfcl.data.measurement import Measurement, rgb_channels
 from brdfcl.device.engine import Engine, select_cells
 from brdfcl.model.compose import Model
 from brdfcl.model.lobes.cells import Cells
 from brdfcl.model.synth import DEMO, demo_values
 from brdfcl.optim.albedo import ALBEDO_LIMIT, directional_albedo
 from brdfcl.optim.assessment import bounds_hit, flags
-from brdfcl.optim.fit import FitOptions, Fitter, coarse_cells
+from brdfcl.optim.fit import FitOptions, Fitter
 from brdfcl.optim.lm import LMOptions, levenberg_marquardt
 from brdfcl.optim.objective import Target, penalty_scale
 from brdfcl.report.output import result_document
@@ -41,11 +42,39 @@ def _noisy_table(model, values, index, noise, seed):
     return np.maximum(p * (1.0 + noise * rng.standard_normal(p.shape)), 0.0)
 
 
+class _Strided(TableLayout):
+    """The table's fitted cells, every CELL_STRIDE-th; the coarse set every 8th of those."""
+
+    def select(self, cutoff_deg=80.0):
+        return select_cells(cutoff_deg, stride=CELL_STRIDE, offset=5)
+
+    def coarse(self, index, stride, peak_bins, peak_stride):
+        return coarse_cells(index, 8, peak_bins, 1)
+
+
+class _Values(Measurement):
+    """A synthetic table known at the strided cells only."""
+
+    channels = rgb_channels()
+
+    def __init__(self, name, layout, values):
+        self.name, self.path, self._layout, self.values = name, None, layout, values
+        self._pos = {int(i): k for k, i in enumerate(layout.select())}
+
+    @property
+    def layout(self):
+        return self._layout
+
+    def values_at(self, indices, outs):
+        for o, idx in zip(outs, indices):
+            o[...] = self.values[:, [self._pos[int(i)] for i in idx]]
+
+
 def _bootstrap(fitter, names, data, x_fit, resamples, seed):
     """Refits over resamples of the cells (multinomial counts as weights), a few LM iterations each
     from the optimum: (resamples, free parameters) natural values."""
     eng, m, sp = fitter.engine, fitter.model, fitter.objective.spaces
-    idx = fitter.full_index
+    idx = _Strided().select(fitter.opts.cutoff_deg)
     rng = np.random.default_rng(seed)
     ylo, yhi = sp.y_bounds
     out = []
@@ -63,13 +92,11 @@ def test_standard_errors_match_bootstrap():
     opts = FitOptions(model=spec)
     f = Fitter(opts)
     m = f.model
-    f.full_index = select_cells(opts.cutoff_deg, stride=CELL_STRIDE, offset=5)
-    f.coarse_index, f.coarse_scale = coarse_cells(f.full_index, 8, opts.coarse_peak_bins, 1)
+    layout = _Strided()
     truth = demo_values(m, params)
-    full = _noisy_table(m, truth, f.full_index, NOISE, seed=1)[None].astype(np.float32)
-    pos = np.searchsorted(f.full_index, f.coarse_index)
+    full = _noisy_table(m, truth, layout.select(opts.cutoff_deg), NOISE, seed=1)[None].astype(np.float32)
     t = time.perf_counter()
-    (res,) = f.fit([MATERIAL], full, full[:, :, pos])
+    (res,) = f.fit([_Values(MATERIAL, layout, full[0])])
     t_fit = time.perf_counter() - t
     assert res.success and not res.bounds_hit, (res.status, res.bounds_hit)
     unc = res.uncertainty

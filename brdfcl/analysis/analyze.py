@@ -110,7 +110,10 @@ RULE = Rule()
 
 
 @dataclass
-class MaterialAnalysis:
+class Analysis:
+    """What every analysed material has, a table or scattered samples: the lobe comparison's fits
+    and choice, the verdict and the peak shares; the evidence of each kind of data is a subclass's."""
+
     name: str
     verdict: str                          # "diffraction" or "none"
     selected: str                         # variant key chosen by the lobe comparison
@@ -118,17 +121,19 @@ class MaterialAnalysis:
     fits: dict                            # variant key -> FitResult
     specs: dict                           # variant key -> model spec
     penalised: dict
-    gradient: GradientMap
-    wavelength: WavelengthCheck
     peak_share_diffraction: float         # share of the fitted peak value from the diffraction lobe
     peak_share_free: float                # the same for the fit without the peak constraint
-    slices: dict = field(default_factory=dict)   # name -> (3, 90, 90) phi_d ~ 90 deg images
-    rule: Rule = field(default_factory=Rule)     # the rule the verdict was given by
+
+    rule: Rule = RULE
+
+    def margins_raw(self) -> dict:
+        """{test: margin} under the rule it was judged by (Rule.margins)."""
+        raise NotImplementedError
 
     def margins(self) -> dict:
         """Each test's margin to its threshold (Rule.margins), the tests the verdict hangs on, and
         the lobe gain itself: the columns analysis.csv carries beside the verdict."""
-        m = margins_of(self)
+        m = self.margins_raw()
         return {"margin_gradient": _fmt(m["gradient"]), "margin_wavelength": _fmt(m["wavelength"]),
                 "margin_lobe": _fmt(m["lobe"]), "lobe_gain": _fmt(m["lobe"] + self.rule.lobe_gain),
                 "verdict_by": self.rule.binding(m)}
@@ -137,11 +142,27 @@ class MaterialAnalysis:
     def final(self):
         return final_fit(self.fits, self.specs, self.final_model)
 
+    def head(self) -> dict:
+        """The first columns of its analysis.csv row."""
+        return {"material": self.name, "verdict": self.verdict, **self.margins(),
+                "selected_lobes": self.specs[self.selected], "final_model": self.final_model}
+
+
+@dataclass
+class MaterialAnalysis(Analysis):
+    """A table analysed: the gradient test and the wavelength check on its grid."""
+
+    gradient: GradientMap = None          # type: ignore[assignment]
+    wavelength: WavelengthCheck = None    # type: ignore[assignment]
+    slices: dict = field(default_factory=dict)   # name -> (3, 90, 90) phi_d ~ 90 deg images
+
+    def margins_raw(self) -> dict:
+        return margins_of(self)
+
     def row(self):
         g, w = self.gradient, self.wavelength
         band = g.th_range_deg[1]
-        out = {"material": self.name, "verdict": self.verdict, **self.margins(),
-               "selected_lobes": self.specs[self.selected], "final_model": self.final_model}
+        out = self.head()
         for c, ch in enumerate("rgb"):
             out[f"grad_score_{ch}"] = _fmt(g.score[c])
         out["grad_cells"] = int(g.n_cells.sum())
@@ -256,8 +277,9 @@ def analyze_material(name, brdf, fits, specs, rule: Rule | None = None) -> Mater
     m = rule.margins(gm.mean_score, int(gm.n_cells.sum()), wl.ratio, lobe_gain(pen, specs))
     verdict = rule.verdict(m)
     free = fits.get("full_free")
-    return MaterialAnalysis(name, verdict, sel, specs[final_key(verdict, sel, fits, specs)], fits, specs, pen, gm, wl,
+    return MaterialAnalysis(name, verdict, sel, specs[final_key(verdict, sel, fits, specs)], fits, specs, pen,
                             peak_share(specs["full"], full.params),
-                            peak_share(specs["full"], free.params) if free else float("nan"), rule=rule)
+                            peak_share(specs["full"], free.params) if free else float("nan"), rule=rule,
+                            gradient=gm, wavelength=wl)
 
 

@@ -48,7 +48,7 @@ from brdfcl.data.merl import N_PD, N_TD, N_TH, SCALE, MerlTable
 from brdfcl.model.compose import Model
 from brdfcl.model.lobes.cells import Cells
 from brdfcl.model.synth import demo_values, tabulate
-from brdfcl.optim.fit import FitOptions, Fitter, load_batch
+from brdfcl.optim.fit import FitOptions, Fitter
 from brdfcl.optim.selection import variants
 
 POWER_CLASSES = ("halo-hp", "halo-abc", "halo-gauss")
@@ -298,12 +298,13 @@ class Compared:
     def fit(self, tables, log=None):
         """{variant: {name: FitResult}} for MerlTables, the full fit the better of both searches."""
         fits = {}
+        tables = list(tables)
+        loaded = self.fitters["full"].load(tables)           # every variant fits the same cells
         for k, f in self.fitters.items():
             t = time.perf_counter()
-            names, full, coarse = load_batch(tables, f)
-            fits[k] = {r.name: r for r in f.fit(names, full, coarse)}
+            fits[k] = {r.name: r for r in f.fit_loaded(loaded)}
             if log:
-                log(f"  fitted {len(names)} with {k} in {time.perf_counter() - t:.1f} s")
+                log(f"  fitted {len(loaded.names)} with {k} in {time.perf_counter() - t:.1f} s")
         other = fits.pop("full_local")
         fits["full"] = {n: (r if r.loss <= other[n].loss else other[n]) for n, r in fits["full"].items()}
         return fits

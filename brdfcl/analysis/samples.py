@@ -29,11 +29,11 @@ the RGB model), so that it keeps the meaning it has on tables.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
-from brdfcl.analysis.analyze import COMPARED, Rule, _fmt, final_fit, final_key, fit_columns, lobe_gain, peak_share
+from brdfcl.analysis.analyze import COMPARED, Analysis, Rule, _fmt, final_key, fit_columns, lobe_gain, peak_share
 from brdfcl.analysis.spectral import SpectralCheck, spectral_check
 from brdfcl.data.samples import Samples
 from brdfcl.model.compose import Model
@@ -57,22 +57,14 @@ GRADIENT_NOT_RUN = "not run: scattered samples have no (theta_h, theta_d) grid"
 
 
 @dataclass
-class SampleAnalysis:
-    """One material's scattered samples analysed: what MaterialAnalysis is for a table."""
+class SampleAnalysis(Analysis):
+    """One material's scattered samples analysed: the wavelength law by model comparison and the
+    spectral collapse, no gradient test."""
 
-    name: str
-    verdict: str                          # "diffraction" or "none"
-    selected: str                         # variant key chosen by the lobe comparison
-    final_model: str
-    fits: dict                            # variant key -> FitResult
-    specs: dict                           # variant key -> model spec
-    penalised: dict
-    spectral: SpectralCheck | None        # None: too few wide-angle samples or bands
-    samples: Samples                      # the measurement (for the figures)
-    peak_share_diffraction: float
-    peak_share_free: float
-    rule: Rule = field(default_factory=lambda: SAMPLE_RULE)
-    gradient = None                       # the gradient test is not run (module docstring)
+    rule: Rule = SAMPLE_RULE
+    spectral: SpectralCheck | None = None   # None: too few wide-angle samples or bands
+    samples: Samples = None                 # type: ignore[assignment]  # the measurement (for the figures)
+    gradient = None                         # the gradient test is not run (module docstring)
 
     @property
     def lambdas(self) -> tuple:
@@ -86,19 +78,9 @@ class SampleAnalysis:
     def margins_raw(self) -> dict:
         return self.rule.margins(float("nan"), 0, self.law_ratio, lobe_gain(self.penalised, self.specs))
 
-    def margins(self) -> dict:
-        m = self.margins_raw()
-        return {"margin_gradient": "", "margin_wavelength": _fmt(m["wavelength"]), "margin_lobe": _fmt(m["lobe"]),
-                "lobe_gain": _fmt(m["lobe"] + self.rule.lobe_gain), "verdict_by": self.rule.binding(m)}
-
-    @property
-    def final(self):
-        return final_fit(self.fits, self.specs, self.final_model)
-
     def row(self) -> dict:
         s = self.spectral
-        out = {"material": self.name, "verdict": self.verdict, **self.margins(),
-               "selected_lobes": self.specs[self.selected], "final_model": self.final_model,
+        out = {**self.head(),
                "data": f"{self.samples.n_samples} scattered samples, {len(self.lambdas)} bands",
                "gradient_test": GRADIENT_NOT_RUN,
                "wavelength_ratio": _fmt(self.law_ratio),
@@ -135,6 +117,7 @@ def analyze_samples(samples, fits: dict, specs: dict, rule: Rule | None = None,
     verdict = rule.verdict(m)
     free = fits.get("full_free")
     final = specs[final_key(verdict, sel, fits, specs)]
-    return SampleAnalysis(samples.name, verdict, sel, final, fits, specs, pen, chk, samples,
+    return SampleAnalysis(samples.name, verdict, sel, final, fits, specs, pen,
                           peak_share(specs["full"], full.params, lambdas),
-                          peak_share(specs["full"], free.params, lambdas) if free else float("nan"), rule=rule)
+                          peak_share(specs["full"], free.params, lambdas) if free else float("nan"), rule=rule,
+                          spectral=chk, samples=samples)

@@ -14,17 +14,18 @@ from collections.abc import Callable, Iterator
 from dataclasses import replace
 from typing import Any
 
+import numpy as np
+
 from brdfcl.analysis.analyze import COMPARED, MaterialAnalysis, analyze_material, lobe_images
 from brdfcl.analysis.gradient import phi90_slice
 from brdfcl.analysis.samples import GREY, SampleAnalysis, analyze_samples, grey_lambdas
 from brdfcl.app.runner import Runner
 from brdfcl.data.errors import DataError
-from brdfcl.data.inputs import is_table
-from brdfcl.data.merl import MerlError, read_merl
-from brdfcl.data.readers import read_samples
-from brdfcl.data.samples import Samples
+from brdfcl.data.geometry import table_values
+from brdfcl.data.measurement import Measurement
+from brdfcl.data.merl import N_CELLS, MerlError
 from brdfcl.model.compose import Model
-from brdfcl.optim.fit import FitOptions, Fitter
+from brdfcl.optim.fit import FitOptions, Fitter, same_cells
 from brdfcl.optim.selection import variants
 from brdfcl.report.writers import ANALYSIS, Item
 
@@ -45,7 +46,7 @@ class Analyses(list):
 def analyze(source: Any, out: str | os.PathLike | None = None, options: FitOptions | None = None,
             batch: int = 100, log: Callable[[str], None] | None = None, figures: bool = True,
             on_material: Callable[[MaterialAnalysis], None] | None = None, ct_peak: bool = True,
-            on_skip: Callable[[str, str], None] | None = None, pages: bool = False) -> Analyses:
+            on_skip: Callable[[str, str], None] | None = None, pages: bool = False, rgb: bool = False) -> Analyses:
     """Analyse every material of a database; writes analysis.csv, maps, figures and index.html,
     and with ``pages`` the run's report (``OUT/report/index.html``, brdfcl.report.view.pages).
 
@@ -53,7 +54,10 @@ def analyze(source: Any, out: str | os.PathLike | None = None, options: FitOptio
     ``on_skip(path, reason)`` (default: ``log("skipped: reason")``); the rest is analysed.  Raises
     MerlError when files were given but none could be read; before any work, OSError when ``out``
     cannot be written and brdfcl.data.inputs.InputOverwriteError (also brdfcl.app.run's) when it is, holds or
-    is inside the input."""
+    is inside the input.  ``rgb``: spectral measurements as linear sRGB (brdfcl.data.rgb.to_rgb).
+
+    A table (a dense layout) gets the gradient test and the wavelength check on its grid; scattered
+    samples the wavelength law by model comparison (brdfcl.analysis.samples)."""
     opts = options or FitOptions()
     specs = variants(Model(opts.model).spec)
     if set(specs) != {"full", "no_diffraction", "no_ct"}:
@@ -63,11 +67,11 @@ def analyze(source: Any, out: str | os.PathLike | None = None, options: FitOptio
     results = Analyses()
     results.skipped = run.report.skipped
     fitters = variant_fitters(opts, specs, ct_peak)
-    base = fitters["full"]
     if ct_peak:
         specs["full_free"] = specs["full_local"] = specs["full"]
 
-    tables = [p for p in run.paths if is_table(p)]
+    groups = run.read(run.paths, rgb)
+    tables = [m for g in groups for m in g if m.layout.dense]
 
     def finished(a, path):
         run.done(Item(a.name, path, analysis=a))
@@ -76,30 +80,33 @@ def analyze(source: Any, out: str | os.PathLike | None = None, options: FitOptio
             on_material(a)
 
     for part in run.batches(tables, batch):
-        loaded = run.load(part, base)
-        if loaded is None:
-            continue
-        names, full, coarse, read = loaded
         fits = {}
+        base = fitters["full"]
+        loaded = base.load(part, on_error=lambda m, e: run.skip(m.path or m.name, e))
+        read = [part[k] for k in loaded.read]
         for k, f in fitters.items():
             t = time.perf_counter()
-            fits[k] = {r.name: r for r in f.fit(names, full, coarse)}
-            run.log(f"fitted {len(names)} materials with {specs[k]} ({k}) in {time.perf_counter() - t:.1f} s")
-        del full, coarse
+            fitted = f.fit_loaded(loaded) if same_cells(base, f) else f.fit(read)
+            fits[k] = {r.name: r for r in fitted}
+            run.log(f"fitted {len(read)} material{'s' * (len(read) != 1)} with {specs[k]} ({k}) in "
+                    f"{time.perf_counter() - t:.1f} s")
+        del loaded
         best_of_both(fits, "full", "full_local")
-        for name, path in zip(names, read):
+        for m in read:
             try:
-                brdf = read_merl(path).brdf()
-            except MerlError as e:          # changed or removed since it was fitted
-                run.skip(path, e)
+                brdf = table_values(m, np.arange(N_CELLS))      # the gradient test's grid
+            except (DataError, MerlError) as e:          # changed or removed since it was fitted
+                run.skip(m.path, e)
                 continue
+            name = m.name
             a = analyze_material(name, brdf, {k: fits[k][name] for k in fits}, specs)
             if figures or out is not None:
                 a.slices = {"measured": phi90_slice(brdf)[0], **lobe_images(specs["full"], a.fits["full"].params)}
-            finished(a, path)
+            finished(a, m.path)
             run.log(f"{name}: {a.verdict} (lobes {a.specs[a.selected]}, gradient score "
                     f"{a.gradient.mean_score:.2f}, wavelength ratio {a.wavelength.ratio:.2f})")
-    for path, sa in _analyze_samples(run, [p for p in run.paths if not is_table(p)], opts, specs, ct_peak, batch):
+    scattered = [g for g in groups if not g[0].layout.dense]
+    for path, sa in _analyze_samples(run, scattered, opts, specs, ct_peak, batch):
         finished(sa, path)
         n = sa.spectral.exponent if sa.spectral else float("nan")
         run.log(f"{sa.name}: {sa.verdict} (lobes {sa.specs[sa.selected]}, wavelength law ratio {sa.law_ratio:.2f} "
@@ -133,19 +140,12 @@ def best_of_both(fits: dict, key: str, other: str) -> None:
         fits[key] = {n: (r if r.loss <= alt[n].loss else alt[n]) for n, r in fits[key].items()}
 
 
-def _analyze_samples(run: Runner, paths: list[str], opts: FitOptions, specs: dict, ct_peak: bool,
+def _analyze_samples(run: Runner, groups: list[list[Measurement]], opts: FitOptions, specs: dict, ct_peak: bool,
                      batch: int) -> Iterator[tuple[str, SampleAnalysis]]:
-    """(path, SampleAnalysis) of each readable samples file, fitted with every compared model in
-    groups of equal bands (brdfcl.analysis.samples); unreadable files are skipped with their reason."""
-    groups: dict[tuple, list[tuple[str, Samples]]] = {}
-    for p in paths:
-        try:
-            s = read_samples(p)
-        except (DataError, ValueError) as e:
-            run.skip(p, e)
-            continue
-        groups.setdefault(tuple(float(x) for x in s.wavelengths), []).append((p, s))
-    for lambdas, group in groups.items():
+    """(path, SampleAnalysis) of each scattered measurement, fitted with every compared model in
+    groups of equal bands (brdfcl.analysis.samples)."""
+    for group in groups:
+        lambdas = tuple(float(x) for x in group[0].wavelengths)
         fitters = variant_fitters(opts, specs, ct_peak, lambdas)
         base = fitters["full"]
         grey = grey_lambdas(lambdas)            # the wavelength law's rival, searched as the full model
@@ -154,16 +154,17 @@ def _analyze_samples(run: Runner, paths: list[str], opts: FitOptions, specs: dic
             fitters[GREY + "_local"] = Fitter(replace(base.opts, ct_peak_global=False), engine=fitters[GREY].engine,
                                               lambdas=grey)
         for part in run.batches(group, batch):
-            samples = [s for _, s in part]
+            samples = list(part)
             fits = {}
             for k, f in fitters.items():
                 t = time.perf_counter()
-                fits[k] = {r.name: r for r in f.fit_samples(samples)}
+                fits[k] = {r.name: r for r in f.fit(samples)}
                 run.log(f"fitted {len(samples)} sample sets ({len(lambdas)} bands) with "
                         f"{specs.get(k, specs['full'])} ({k}) in {time.perf_counter() - t:.1f} s")
             best_of_both(fits, "full", "full_local")
             best_of_both(fits, GREY, GREY + "_local")
-            for path, s in part:
+            for s in part:
+                path = s.path or s.name
                 if not any(fits[k][s.name].success for k in COMPARED if k in fits):
                     run.skip(path, f"{path}: no compared model could be fitted")
                     continue

@@ -27,8 +27,11 @@ import os
 import traceback
 
 from brdfcl.app.runner import Runner
-from brdfcl.data.inputs import FileReader
-from brdfcl.data.merl import material_name
+from brdfcl.data.errors import DataError
+from brdfcl.data.merl import MerlError, material_name
+from brdfcl.data.readers import read_measurement
+from brdfcl.data.rgb import to_rgb
+from brdfcl.model.compose import Model
 from brdfcl.optim import fit
 from brdfcl.optim.forms import FormFitter
 
@@ -91,24 +94,31 @@ def make_client(scheduler=None, workers=0, log_level=logging.CRITICAL):
 _WORKER_FITTERS: dict = {}
 
 
-def fit_chunk(paths, opts, forms=None):
+def fit_chunk(paths, opts, forms=None, lambdas=None, rgb=False):
     """Task body: fit a chunk on this worker (``forms``: {key: model spec}, each material's form
-    chosen as brdfcl.optim.forms.FormFitter does); returns ([(result, what NAME.json records beside
-    it)], {path: reason skipped}, failure), failure None or (one line: worker and cause, the
+    chosen as brdfcl.optim.forms.FormFitter does; ``lambdas``: the chunk's channels, None for
+    R, G, B; ``rgb``: spectral files read as linear sRGB); returns ([(result, what NAME.json records
+    beside it)], {path: reason skipped}, failure), failure None or (one line: worker and cause, the
     worker's traceback as text)."""
     try:
-        key = (repr(opts), repr(forms), os.environ.get("BRDFCL_DEVICE"))
+        key = (repr(opts), repr(forms), lambdas, os.environ.get("BRDFCL_DEVICE"))
         fitter = _WORKER_FITTERS.get(key)
         if fitter is None:                  # fit.Fitter looked up now: tests put a failing one there
             # one context and program per worker (and form)
-            fitter = _WORKER_FITTERS[key] = fit.Fitter(opts) if not forms else FormFitter(opts, forms)
+            fitter = _WORKER_FITTERS[key] = (fit.Fitter(opts, lambdas=lambdas) if not forms
+                                             else FormFitter(opts, forms, lambdas=lambdas))
         skipped = {}
+        measurements = []
+        for p in paths:
+            try:
+                m = read_measurement(p)
+                measurements.append(to_rgb(m) if rgb else m)
+            except (DataError, MerlError, ValueError) as e:
+                skipped[str(p)] = str(e)
 
-        def on_error(item, e):
-            skipped[str(item)] = str(e)
-        loader = fitter if isinstance(fitter, fit.Fitter) else fitter.loader
-        names, full, coarse = fit.load_batch([FileReader(p) for p in paths], loader, on_error)
-        done = fitter.fit(names, full, coarse) if names else []
+        def on_error(m, e):
+            skipped[m.path or m.name] = str(e)
+        done = fitter.fit(measurements, on_error=on_error) if measurements else []
         results = [r if isinstance(r, tuple) else (r, None) for r in done]
         return results, skipped, None
     except Exception as e:          # pyopencl errors do not even pickle: send text
@@ -131,19 +141,27 @@ def _cancel(client, futures):
 
 
 def fit_on_cluster(client, run: Runner, paths: list[str], opts: fit.FitOptions, batch: int,
-                   forms: dict | None = None) -> None:
-    """Spread ``paths`` over the cluster's workers (``forms``: as `fit_chunk`); ``run`` writes each
+                   forms: dict | None = None, rgb: bool = False) -> None:
+    """Spread ``paths`` over the cluster's workers (``forms``: as `fit_chunk`), in chunks of
+    measurements that can share a batch (brdfcl.app.runner.Runner.read); ``run`` writes each
     chunk's results as it completes."""
     # local: Dask is optional (the "cluster" extra); a caller with a client has it
     from dask.distributed import as_completed
 
     n_workers = max(1, len(client.scheduler_info().get("workers", {})))
-    size = max(1, min(batch, math.ceil(len(paths) / (2 * n_workers))))
-    chunks = [paths[i:i + size] for i in range(0, len(paths), size)]
+    groups = run.read(paths, rgb)
+    total = sum(len(g) for g in groups)
+    size = max(1, min(batch, math.ceil(total / (2 * n_workers))))
+    default = tuple(Model(opts.model).lambdas)
+    chunks = []
+    for g in groups:
+        lambdas = tuple(float(x) for x in g[0].wavelengths)
+        for i in range(0, len(g), size):
+            chunks.append(([m.path for m in g[i:i + size]], None if lambdas == default else lambdas))
     run.log(f"cluster: {len(chunks)} chunks of up to {size} materials on {n_workers} workers")
-    futures = [client.submit(fit_chunk, c, opts, forms, pure=False, retries=2) for c in chunks]
-    chunk_of = {f.key: c for f, c in zip(futures, chunks)}
-    with run.tracking(len(paths)):
+    futures = [client.submit(fit_chunk, c, opts, forms, lam, rgb, pure=False, retries=2) for c, lam in chunks]
+    chunk_of = {f.key: c for f, (c, _) in zip(futures, chunks)}
+    with run.tracking(total):
         for fut in as_completed(futures):
             chunk = chunk_of[fut.key]
             what = f"cluster: fitting {chunk_label(chunk)} ({len(chunk)} material{'s' * (len(chunk) != 1)})"

@@ -28,25 +28,15 @@ from brdfcl.app.analyze import analyze
 from brdfcl.app.cluster import fit_on_cluster
 from brdfcl.app.resume import OPTION_FLAGS, ResultsDiffer, resume
 from brdfcl.app.runner import Models, Progress, Runner, RunReport
-from brdfcl.data.errors import DataError
-from brdfcl.data.inputs import (
-    FileReader,
-    InputOverwriteError,
-    check_output_dir,
-    check_output_not_input,
-    database_paths,
-    is_table,
-)
+from brdfcl.data.inputs import InputOverwriteError, check_output_dir, check_output_not_input, database_paths
 from brdfcl.data.merl import material_name
-from brdfcl.data.readers import read_samples
-from brdfcl.data.rgb import to_rgb
 from brdfcl.model.compose import Model
 from brdfcl.optim.fit import FitOptions
-from brdfcl.optim.forms import FormFitter, asked_for, form_keys, resolve
+from brdfcl.optim.forms import FormFitter, form_keys, resolve
 from brdfcl.report.writers import FIT, IMPLEMENTED_WRITERS, Job, export_writers
 
 # This module's API, with the names of the runner and of brdfcl.data.inputs callers import from here.
-__all__ = ["FileReader", "InputOverwriteError", "Models", "OPTION_FLAGS", "Progress", "ResultsDiffer",
+__all__ = ["InputOverwriteError", "Models", "OPTION_FLAGS", "Progress", "ResultsDiffer",
            "RunReport", "check_output_dir", "check_output_not_input", "database_paths", "fit_all",
            "write_pages"]
 
@@ -81,7 +71,6 @@ def fit_all(source, out=None, options: FitOptions | None = None, batch=100, expo
     ``model`` keyword is a model asked for: it is fitted as given); None or ``"none"``: the model as
     given."""
     opts = options or FitOptions(**kw)
-    explicit = asked_for(forms)
     forms = resolve(forms, opts, model_given="model" in kw)
     form_specs = form_keys(opts.model, forms) if forms is not None else None
     for spec in (form_specs or {}).values():     # a fixed parameter every form must have: before any work
@@ -93,19 +82,12 @@ def fit_all(source, out=None, options: FitOptions | None = None, batch=100, expo
     run = Runner(source, out, FIT, log=log, quiet=quiet, options=recorded,
                  exports=_exports(export), pages=pages, model=models.model, engine=models.engine)
     todo = resume(run, recorded, overwrite) if run.job is not None else run.paths
-    samples = [p for p in todo if not is_table(p)]
-    if samples and (client is not None or (select_lobes and (explicit or rgb))):
-        how = "a cluster" if client is not None else "--forms" if explicit else "--rgb and --select-lobes"
-        raise ValueError(f"{samples[0]}: scattered samples are fitted here, without {how} (not yet supported)")
-    if samples and not select_lobes:      # --select-lobes analyses them with the tables (brdfcl.app.analyze)
-        todo = [p for p in todo if is_table(p)]
-        _fit_samples(run, samples, models, batch, rgb)
     if select_lobes:
-        _fit_selected(run, todo, opts, batch, form_specs)
+        _fit_selected(run, todo, opts, batch, form_specs, rgb)
     elif client is not None:
-        fit_on_cluster(client, run, todo, opts, batch, form_specs)
+        fit_on_cluster(client, run, todo, opts, batch, form_specs, rgb)
     else:
-        _fit_here(run, todo, models, batch)
+        _fit_here(run, todo, models, batch, rgb)
     return run.finish()
 
 
@@ -129,42 +111,19 @@ def _exports(export: bool | str | Iterable[str]) -> frozenset[str]:
     return names
 
 
-def _fit_here(run: Runner, todo: list[str], models: Models, batch: int) -> None:
+def _fit_here(run: Runner, todo: list[str], models: Models, batch: int, rgb: bool = False) -> None:
     """Fit in this process, a batch at a time, each result written as it finishes (with forms: as
-    its form is chosen)."""
-    with run.tracking(len(todo)):
-        for part in run.batches(todo, batch):
-            fitter = models.table_fitter()
-            loaded = run.load(part, models.loader())
-            if loaded is not None:
-                names, full, coarse, _ = loaded
-                fitter.fit(names, full, coarse, on_result=run.fitted, log=run.log)
-
-
-def _fit_samples(run: Runner, paths: list[str], models: Models, batch: int, rgb: bool) -> None:
-    """Scattered samples: read (a bad file skipped with its reason), optionally to RGB, grouped by
-    their bands, each group fitted a batch at a time."""
-    groups: dict[tuple, list] = {}
-    for p in paths:
-        try:
-            s = read_samples(p)
-            if rgb:
-                s = to_rgb(s)
-        except (DataError, ValueError) as e:
-            run.skip(p, e)
-            continue
-        except ImportError as e:        # --rgb without colour-science: one line for the whole run
-            raise ValueError(str(e)) from None
-        groups.setdefault(tuple(float(x) for x in s.wavelengths), []).append(s)
-    with run.tracking(sum(len(g) for g in groups.values())):
-        for lambdas, group in groups.items():
-            fitter = models.sample_fitter(lambdas) if models.forms is None else models.form_fitter(lambdas)
+    its form is chosen); measurements of other channels or layouts in batches of their own."""
+    groups = run.read(todo, rgb)
+    with run.tracking(sum(len(g) for g in groups)):
+        for group in groups:
+            fitter = models.fitter(tuple(group[0].wavelengths))
             for part in run.batches(group, batch):
-                run.log(f"batch of {len(part)} sample sets loaded ({len(lambdas)} channels)")
-                fitter.fit_samples(part, on_result=run.fitted, log=run.log)
+                run.fit_batch(fitter, part)
 
 
-def _fit_selected(run: Runner, todo: list[str], opts: FitOptions, batch: int, forms: dict | None = None) -> None:
+def _fit_selected(run: Runner, todo: list[str], opts: FitOptions, batch: int, forms: dict | None = None,
+                  rgb: bool = False) -> None:
     """--select-lobes: the lobe comparison of brdfcl.analysis.analyze decides each material's model;
     its final fit (without the diffraction lobe where the verdict is 'none') is the result.  With
     ``forms`` ({key: model spec}, brdfcl.optim.forms.form_variants) each material's form is chosen
@@ -174,35 +133,30 @@ def _fit_selected(run: Runner, todo: list[str], opts: FitOptions, batch: int, fo
     with run.tracking(len(todo)):
         chosen: dict = {opts.model: (todo, {})}
         if forms:
-            samples = [p for p in todo if not is_table(p)]       # only with the default forms (see fit_all)
-            chosen = _choose_forms(run, [p for p in todo if is_table(p)], opts, batch, forms)
-            if samples:
-                run.log("scattered samples: their lobes are compared in the model's own form (forms are chosen "
-                        "for MERL tables under --select-lobes)")
-                chosen.setdefault(opts.model, ([], {}))[0].extend(samples)
+            chosen = _choose_forms(run, todo, opts, batch, forms, rgb)
         for spec, (paths, info) in chosen.items():
             def done(a: Any, info: dict = info) -> None:
                 run.fitted(a.final, {"selected_by": "lobe comparison", "verdict": a.verdict, **info.get(a.name, {})})
             analyze(paths, None, replace(opts, model=spec), batch=batch, log=run.log, figures=False,
-                    ct_peak=opts.ct_peak, on_skip=run.skip, on_material=done)
+                    ct_peak=opts.ct_peak, on_skip=run.skip, on_material=done, rgb=rgb)
 
 
-def _choose_forms(run: Runner, todo: list[str], opts: FitOptions, batch: int, forms: dict) -> dict:
+def _choose_forms(run: Runner, todo: list[str], opts: FitOptions, batch: int, forms: dict, rgb: bool) -> dict:
     """{model spec: (paths, {material: what NAME.json records of the choice})}: every material fitted
-    in every form (brdfcl.optim.forms.FormFitter, one load of each batch), the least penalised kept."""
+    in every form (brdfcl.optim.forms.FormFitter, one read of each batch), the least penalised kept."""
     chosen: dict[str, tuple[list, dict]] = {}
-    fitter = FormFitter(opts, forms)
-    for part in run.batches(todo, batch):
-        loaded = run.load(part, fitter.loader)
-        if loaded is None:
-            continue
-        names, full, coarse, paths = loaded
-        for (res, record), path in zip(fitter.fit(names, full, coarse, log=run.log), paths):
-            if record["form"] is None:
-                run.skip(path, f"{path}: no form could be fitted")
-                continue
-            paths_, info = chosen.setdefault(forms[record["form"]], ([], {}))
-            paths_.append(path)
-            info[res.name] = record
-            run.log(f"{res.name}: form {record['form']}")
+    for group in run.read(todo, rgb):
+        lambdas = tuple(group[0].wavelengths)
+        fitter = FormFitter(opts, forms, lambdas=None if lambdas == Model(opts.model).lambdas else lambdas)
+        for part in run.batches(group, batch):
+            path_of = {m.name: m.path or m.name for m in part}
+            for res, record in run.fit_batch(fitter, part, on_result=lambda r, rec: None):
+                path = path_of[res.name]
+                if record is None or record["form"] is None:
+                    run.skip(path, f"{path}: no form could be fitted")
+                    continue
+                paths_, info = chosen.setdefault(forms[record["form"]], ([], {}))
+                paths_.append(path)
+                info[res.name] = record
+                run.log(f"{res.name}: form {record['form']}")
     return chosen

@@ -3,8 +3,9 @@
 A `Runner` lists a job's input (brdfcl.data.inputs.database_paths) and, before any work, refuses
 an output folder that is, holds or is inside the input or that cannot be written, removes what a
 killed run left half-written, and lets the writers that apply to the job (brdfcl.report.writers)
-prepare their folders.  The job then fits in batches (`batches`, `load`): a file that cannot be
-read is skipped with its one-line reason (`skip`: recorded in the RunReport and told to
+prepare their folders.  The job reads its measurements (`read`: any format brdfcl.data.readers
+reads, grouped by what can share a batch) and fits them in batches (`batches`, `fit_batch`): a
+file that cannot be read is skipped with its one-line reason (`skip`: recorded in the RunReport and told to
 ``on_skip``, by default the log); each finished material goes to every writer and advances the
 progress bar (`done`, `fitted`); `finish` lets the writers finish (summary.csv, the report pages)
 and times the run.  Resuming a fit job is brdfcl.app.resume.
@@ -26,11 +27,15 @@ from typing import Any, TypeVar
 
 from tqdm import tqdm
 
-from brdfcl.data.inputs import FileReader, check_output_dir, check_output_not_input, database_paths
-from brdfcl.data.merl import material_name
+from brdfcl.data.errors import DataError
+from brdfcl.data.inputs import check_output_dir, check_output_not_input, database_paths
+from brdfcl.data.measurement import Measurement
+from brdfcl.data.merl import MerlError, material_name
+from brdfcl.data.readers import read_measurement
+from brdfcl.data.rgb import to_rgb
 from brdfcl.device.engine import Engine
 from brdfcl.model.compose import Model
-from brdfcl.optim.fit import FitOptions, Fitter, load_batch
+from brdfcl.optim.fit import FitOptions, Fitter
 from brdfcl.optim.forms import FormFitter
 from brdfcl.report.files import remove_stale_temporaries
 from brdfcl.report.output import recorded_options
@@ -99,7 +104,7 @@ class Models:
         self._engines = {main.spec: engine} if engine is not None else {}
         self._fitter: Fitter | None = None
         self._fitters: dict[tuple, Fitter] = {}
-        self._form_fitters: dict[tuple, FormFitter] = {}
+        self._form_fitters: dict[tuple | None, FormFitter] = {}
 
     def main_fitter(self) -> Fitter:
         """The Fitter of the run's model; exports of that model share its engine (built once)."""
@@ -108,25 +113,23 @@ class Models:
             self._engines[self.main] = self._fitter.engine
         return self._fitter
 
-    def form_fitter(self, lambdas: tuple | None = None) -> FormFitter:
-        """The FormFitter of the run's forms (for tables, or for scattered samples with these bands;
-        built once each); exports of a form share its engine."""
-        key = ("forms", None if lambdas is None else tuple(lambdas))
+    def fitter(self, lambdas: tuple | None = None) -> Fitter | FormFitter:
+        """What fits a batch of measurements in these channels (None: the model's own R, G, B):
+        the run's model, or its choice of forms (built once each; exports of the R, G, B model and
+        forms share their engines)."""
+        key = None if lambdas is None or tuple(lambdas) == tuple(self._models[self.main].lambdas) else tuple(lambdas)
+        if self.forms is None:
+            if key is None:
+                return self.main_fitter()
+            if key not in self._fitters:
+                self._fitters[key] = Fitter(self.opts, lambdas=key)
+            return self._fitters[key]
         if key not in self._form_fitters:
-            ff = self._form_fitters[key] = FormFitter(self.opts, self.forms or {}, lambdas=lambdas)
-            if lambdas is None:
+            ff = self._form_fitters[key] = FormFitter(self.opts, self.forms, lambdas=key)
+            if key is None:
                 for k, f in ff.fitters.items():
                     self._engines.setdefault(ff.forms[k], f.engine)
         return self._form_fitters[key]
-
-    def table_fitter(self) -> Fitter | FormFitter:
-        """What fits a batch of tables: the run's model, or its choice of forms."""
-        return self.main_fitter() if self.forms is None else self.form_fitter()
-
-    def loader(self) -> Fitter:
-        """The Fitter whose cells a batch of tables is loaded on."""
-        f = self.table_fitter()
-        return f.loader if isinstance(f, FormFitter) else f
 
     def model(self, spec: str, lambdas: tuple | None = None) -> Model:
         """The model of a spec (with the run's fixed parameters for its own), at ``lambdas`` (one
@@ -140,13 +143,6 @@ class Models:
         if spec not in self._models:
             self._models[spec] = Model(spec)
         return self._models[spec]
-
-    def sample_fitter(self, lambdas: tuple) -> Fitter:
-        """The Fitter of the run's model for scattered samples with these bands (built once each)."""
-        key = ("samples", tuple(lambdas))
-        if key not in self._fitters:
-            self._fitters[key] = Fitter(self.opts, lambdas=lambdas)
-        return self._fitters[key]
 
     def engine(self, spec: str) -> Engine:
         if spec == self.main and spec not in self._engines:
@@ -219,16 +215,40 @@ class Runner:
         self.report.skipped[str(path)] = str(why)
         self.on_skip(str(path), str(why))
 
-    def load(self, part: Sequence[str], fitter: Fitter) -> tuple[list[str], Any, Any, list[str]] | None:
-        """(names, full data, coarse data, their paths) of the readable files of ``part``, the
-        others skipped; None when none could be read."""
-        def on_error(item, e):
-            self.skip(getattr(item, "path", None) or str(item), e)
-        names, full, coarse = load_batch([FileReader(p) for p in part], fitter, on_error)
-        if not names:
-            return None
-        self.log(f"batch of {len(names)} materials loaded")
-        return names, full, coarse, [p for p in part if p not in self.report.skipped]
+    def read(self, paths: Sequence[str], rgb: bool = False) -> list[list[Measurement]]:
+        """The measurements of ``paths`` (brdfcl.data.readers.read_measurement; ``rgb``: spectral
+        ones as linear sRGB, brdfcl.data.rgb.to_rgb), in groups that can share a batch
+        (``Measurement.batch_key``: the same channels, a table format's one layout); a file that
+        cannot be read is skipped with its reason."""
+        groups: dict[tuple, list[Measurement]] = {}
+        for p in paths:
+            try:
+                m = read_measurement(p)
+                if rgb:
+                    m = to_rgb(m)
+            except (DataError, MerlError, ValueError) as e:
+                self.skip(p, e)
+                continue
+            except ImportError as e:        # --rgb without colour-science: one line for the whole run
+                raise ValueError(str(e)) from None
+            groups.setdefault(m.batch_key(), []).append(m)
+        return list(groups.values())
+
+    def fit_batch(self, fitter: Fitter | FormFitter, part: Sequence[Measurement],
+                  on_result: Callable[[Any, dict | None], None] | None = None) -> Sequence[tuple[Any, dict | None]]:
+        """Fit one batch (a file that cannot be read now is skipped with its reason): [(result, what
+        NAME.json records beside it: the form chosen, or None)], each told to ``on_result`` (default
+        `fitted`) as it finishes."""
+        on_result = on_result or self.fitted
+
+        def skip(m: Measurement, e: Exception) -> None:
+            self.skip(m.path or m.name, e)
+        bands = part[0].n_channels if part else 0
+        self.log(f"batch of {len(part)} material{'s' * (len(part) != 1)} ({bands} channels)")
+        if isinstance(fitter, FormFitter):
+            return fitter.fit(part, on_result=on_result, log=self.log, on_error=skip)
+        return [(r, None) for r in fitter.fit(part, on_result=lambda r: on_result(r, None), log=self.log,
+                                                on_error=skip)]
 
     def done(self, item: Item, note: str = "") -> None:
         """A finished material: to every writer, and one step of the progress bar."""

@@ -1,4 +1,4 @@
-"""Geometry of the MERL table, computed once (docs/spec.md section 2).
+"""Geometry of the MERL table, computed once (docs/spec.md section 2), and its layout.
 
 Models are evaluated at bin centres in index space.  Each cell carries the
 solid-angle measure of its bin, integrated exactly over the bin:
@@ -14,7 +14,11 @@ from functools import lru_cache
 
 import numpy as np
 
-from brdfcl.data.merl import N_CELLS, N_PD, N_TD, N_TH
+from brdfcl.data.measurement import Layout, Measurement
+
+N_TH, N_TD, N_PD = 90, 90, 180
+"""The MERL table's bins: theta_h (square-root spaced), theta_d, phi_d (folded onto [0, pi))."""
+N_CELLS = N_TH * N_TD * N_PD
 
 DEFAULT_CUTOFF_DEG = 80.0
 """Default angle cut-off: cells with theta_i or theta_o beyond it are left out
@@ -105,6 +109,38 @@ def grid_directions(theta_h, theta_d, phi_d):
     return wi.reshape(-1, 3), wo.reshape(-1, 3)
 
 
+def rusinkiewicz(wi, wo):
+    """(theta_h, theta_d, phi_d in [0, pi)) of direction pairs (n = z): the inverse of
+    brdfcl.data.geometry.directions, phi_d folded by reciprocity as MERL does."""
+    h = wi + wo
+    h = h / np.linalg.norm(h, axis=-1, keepdims=True)
+    th = np.arccos(np.clip(h[..., 2], -1.0, 1.0))
+    ph = np.arctan2(h[..., 1], h[..., 0])
+    x = wi[..., 0] * np.cos(ph) + wi[..., 1] * np.sin(ph)          # Rz(-phi_h) wi
+    y = -wi[..., 0] * np.sin(ph) + wi[..., 1] * np.cos(ph)
+    st, ct = np.sin(th), np.cos(th)
+    dx, dz = x * ct - wi[..., 2] * st, x * st + wi[..., 2] * ct        # Ry(-theta_h)
+    return th, np.arccos(np.clip(dz, -1.0, 1.0)), np.mod(np.arctan2(y, dx), np.pi)
+
+
+def index_coordinates(wi, wo):
+    """Fractional (theta_h, theta_d, phi_d) bin coordinates of direction pairs (those of
+    brdfcl.data.geometry.bin_centres: theta_h's is 90 sqrt(theta_h / (pi/2)) - 1/2)."""
+    th, td, pd = rusinkiewicz(np.asarray(wi, float), np.asarray(wo, float))
+    _, td0, pd0 = bin_centres()
+    return [np.clip(N_TH * np.sqrt(th / (np.pi / 2)) - 0.5, 0, N_TH - 1),
+            np.clip(td / (td0[1] - td0[0]) - 0.5, 0, N_TD - 1), pd / (pd0[1] - pd0[0]) - 0.5]
+
+
+def nearest_cells(wi, wo, stride=(1, 1, 1)):
+    """The table cell index (n,) whose bin holds each direction pair; with ``stride`` (theta_h,
+    theta_d, phi_d) the nearest of every stride-th bin along each axis (a coarser table)."""
+    u = index_coordinates(wi, wo)
+    i = [np.floor(x / s + 0.5).astype(int) * s for x, s in zip(u, stride)]
+    i[0], i[1] = (np.clip(x, 0, (n - 1) // s * s) for x, n, s in zip(i[:2], (N_TH, N_TD), stride))
+    return (i[2] % N_PD) + N_PD * (i[1] + N_TD * i[0])
+
+
 @lru_cache(maxsize=1)
 def table_geometry() -> Geometry:
     """The geometry of the whole 90 x 90 x 180 table (computed once per process)."""
@@ -117,3 +153,80 @@ def table_geometry() -> Geometry:
         a.setflags(write=False)
     assert weight.size == N_CELLS
     return Geometry(TH, TD, PD, wi, wo, weight)
+
+
+class TableLayout(Layout):
+    """The cells of the MERL table (90 x 90 x 180 Rusinkiewicz bins, in MERL cell order), each at
+    its bin centre with its bin's exact measure (`table_geometry`): one object every MERL table
+    shares."""
+
+    dense = True
+
+    @staticmethod
+    @lru_cache(maxsize=4)
+    def _selected(cutoff_deg: float | None) -> np.ndarray:
+        index = np.flatnonzero(table_geometry().mask(cutoff_deg))
+        index.setflags(write=False)
+        return index
+
+    def select(self, cutoff_deg: float | None = DEFAULT_CUTOFF_DEG) -> np.ndarray:
+        return self._selected(cutoff_deg)
+
+    def weights(self, index: np.ndarray, cutoff_deg: float | None = DEFAULT_CUTOFF_DEG) -> np.ndarray:
+        return table_geometry().weight[index]
+
+    def rows(self, index: np.ndarray) -> tuple[np.ndarray, ...]:
+        g = table_geometry()
+        th = g.theta_h[index]
+        return np.sin(th), np.cos(th), np.cos(g.theta_d[index]), g.cos_i[index], g.cos_o[index]
+
+    def lookup(self, wi: np.ndarray, wo: np.ndarray) -> np.ndarray:
+        ok = (wi[..., 2] > 0) & (wo[..., 2] > 0)
+        return np.where(ok, nearest_cells(wi, wo), -1)
+
+    def coarse(self, index: np.ndarray, stride: int, peak_bins: int,
+               peak_stride: int) -> tuple[np.ndarray, np.ndarray]:
+        """Denser near the specular peak, where sharp lobes live in few theta_h bins: every
+        ``peak_stride``-th cell of the first ``peak_bins`` theta_h bins, every ``stride``-th of the
+        rest."""
+        return coarse_cells(index, stride, peak_bins, peak_stride)
+
+
+TABLE = TableLayout()
+"""The MERL table's layout."""
+
+
+def table_values(m: Measurement, index: np.ndarray) -> np.ndarray:
+    """A measurement's BRDF (C, len(index)) float64 at the MERL table's cells ``index``, NaN where
+    missing: a MERL table's own cells; another table's nearest cell to each bin centre (its
+    layout's `lookup`), what the analysis and the report read of any table.  ValueError for a
+    measurement whose layout has no lookup (scattered samples)."""
+    index = np.asarray(index)
+    out = np.full((m.n_channels, index.size), np.nan)
+    if m.layout is TABLE:
+        m.values_at([index], [out])
+        return out
+    g = table_geometry()
+    cells = m.layout.lookup(g.wi[index], g.wo[index])
+    if cells is None:
+        raise ValueError(f"{m.path or m.name}: not a table: its samples have no cells to look up")
+    found = cells >= 0
+    got = np.empty((m.n_channels, int(found.sum())))
+    m.values_at([cells[found]], [got])
+    out[:, found] = got
+    return out
+
+
+def coarse_cells(full_index: np.ndarray, stride: int, peak_bins: int,
+                 peak_stride: int) -> tuple[np.ndarray, np.ndarray]:
+    """A coarse subset of the table cells ``full_index`` for the global search: (table indices,
+    weight scales).  Denser near the specular peak, where sharp lobes live in few theta_h bins; the
+    weights are scaled by the strides so that its loss estimates the full one."""
+    th_idx = full_index // (N_TD * N_PD)
+    peak = th_idx < peak_bins
+    near = np.flatnonzero(peak)[::peak_stride]
+    rest = np.flatnonzero(~peak)[::stride]
+    idx = np.concatenate([near, rest])
+    scale = np.concatenate([np.full(near.size, float(peak_stride)), np.full(rest.size, float(stride))])
+    order = np.argsort(idx)
+    return full_index[idx[order]], scale[order]

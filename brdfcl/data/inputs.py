@@ -1,18 +1,16 @@
 """A run's input files, and the rule that brdfcl never writes into them.
 
 What every job (``brdfcl fit-all``, ``analyze``, a cluster task) does with its input before and
-while fitting: list the database (``database_paths``), read one file at a time under its path
-(``FileReader``), refuse an output folder that is, holds or is inside the input data
-(``check_output_not_input``: InputOverwriteError, symlinks resolved) and one that cannot be written
-(``check_output_dir``), before any work.  It depends on brdfcl.data.merl alone, so the job runner
-(brdfcl.app.run), the analysis and the cluster runner all import it from below.
+while fitting: list the database (``database_paths``), refuse an output folder that is, holds or is
+inside the input data (``check_output_not_input``: InputOverwriteError, symlinks resolved) and one
+that cannot be written (``check_output_dir``), before any work.
 """
 from __future__ import annotations
 
 import os
 from pathlib import Path
 
-from brdfcl.data.merl import MerlError, list_database, read_merl, read_merl_at
+from brdfcl.data.merl import MerlError
 from brdfcl.data.readers import READERS, find_measurements
 
 
@@ -21,48 +19,20 @@ class InputOverwriteError(ValueError):
 
 
 def database_paths(source) -> list[str]:
-    """A folder (its MERL .binary files and the scattered-sample files brdfcl.data.readers reads:
-    .brdf, .csv; sorted by name), a single file, or a list of files."""
+    """A folder (the files of it a reader of brdfcl.data.readers reads, sorted by name), a single
+    file, or a list of files."""
     if isinstance(source, (str, os.PathLike)):
         if os.path.isfile(source):
             return [os.fspath(source)]
-        samples = [os.fspath(p) for p in find_measurements(source)] if os.path.isdir(source) else []
-        if not samples:
-            if os.path.isdir(source) and not any(is_table(f) for f in os.listdir(source)):
-                raise MerlError(f"{os.fspath(source)}: no measurement files in this folder (MERL .binary, "
-                                f"{', '.join(sorted(READERS))})")
-            return list_database(source)          # its one-line error when it is not a folder
-        tables = [p for p in (os.path.join(source, f) for f in os.listdir(source)) if is_table(p)]
-        return sorted(tables + samples, key=lambda p: os.path.basename(p))
+        if not os.path.isdir(source):
+            raise MerlError(f"{os.fspath(source)}: not a folder" if os.path.exists(source)
+                            else f"{os.fspath(source)}: no such file or folder")
+        found = [os.fspath(p) for p in find_measurements(source)]
+        if not found:
+            raise MerlError(f"{os.fspath(source)}: no measurement files in this folder "
+                            f"({', '.join(sorted(READERS))})")
+        return found
     return [os.fspath(p) for p in source]
-
-
-def is_table(path) -> bool:
-    """A MERL table (.binary); anything else a reader of brdfcl.data.readers reads as samples."""
-    return os.fspath(path).lower().endswith(".binary")
-
-
-class FileReader:
-    """Reads one file when called; named by its path so that errors can say which."""
-
-    def __init__(self, path):
-        self.path = path
-
-    def __call__(self):
-        self._present()
-        return read_merl(self.path)
-
-    def values_at(self, indices, outs, buffer=None) -> str:
-        """The file's BRDF at each index set into ``outs``, its name returned (brdfcl.data.merl.read_merl_at)."""
-        self._present()
-        return read_merl_at(self.path, indices, outs, buffer)
-
-    def _present(self) -> None:
-        if not os.path.exists(self.path):
-            raise MerlError(f"{self.path}: file disappeared before it could be read")
-
-    def __str__(self):
-        return self.path
 
 
 def _forms(path):

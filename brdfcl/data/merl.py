@@ -9,13 +9,19 @@ from __future__ import annotations
 
 import os
 import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-N_TH, N_TD, N_PD = 90, 90, 180
-N_CELLS = N_TH * N_TD * N_PD
+from brdfcl.data.geometry import N_CELLS, N_PD, N_TD, N_TH, TABLE
+from brdfcl.data.measurement import Layout, Measurement, rgb_channels
+
+__all__ = ["CHANNELS", "FILE_SIZE", "HEADER", "N_CELLS", "N_PD", "N_TD", "N_TH", "SCALE", "MerlError", "MerlFile",
+           "MerlTable", "list_database", "material_name", "open_merl", "read_database", "read_merl", "read_merl_at",
+           "read_merl_cells", "read_numbers", "write_merl"]
 SCALE = np.array([1.0 / 1500.0, 1.15 / 1500.0, 1.66 / 1500.0])
 HEADER = np.array([N_TH, N_TD, N_PD], dtype="<i4")
 FILE_SIZE = HEADER.nbytes + 3 * N_CELLS * 8
@@ -27,7 +33,7 @@ class MerlError(ValueError):
 
 
 @dataclass
-class MerlTable:
+class MerlTable(Measurement):
     """One measured material as stored: numbers (3, N_CELLS), NaN where missing.
 
     ``stored`` keeps the file's own numbers (before the channel scale) so that
@@ -37,6 +43,15 @@ class MerlTable:
     path: str | None
     stored: np.ndarray        # (3, N_CELLS) float64, NaN = missing
     n_missing: int            # cells missing in at least one channel
+    channels = rgb_channels()
+
+    @property
+    def layout(self) -> Layout:
+        return TABLE
+
+    def values_at(self, indices, outs) -> None:
+        for o, idx in zip(outs, indices):
+            self.brdf_at(idx, out=o)
 
     @property
     def valid(self) -> np.ndarray:
@@ -53,6 +68,38 @@ class MerlTable:
         ``out`` when given)."""
         out = np.empty((3, len(index)), dtype=dtype) if out is None else out
         return scaled_at(self.stored, index, out)
+
+
+class MerlFile(Measurement):
+    """A MERL file, read only when its values are asked for (`values_at`: each thread reuses one
+    read buffer, so a batch of tables costs no table-sized allocation per file)."""
+
+    channels = rgb_channels()
+    path: str
+
+    def __init__(self, path):
+        self.path = os.fspath(path)
+        self.name = material_name(path)
+
+    @property
+    def layout(self) -> Layout:
+        return TABLE
+
+    def values_at(self, indices, outs) -> None:
+        if not os.path.exists(self.path):
+            raise MerlError(f"{self.path}: file disappeared before it could be read")
+        read_merl_at(self.path, indices, outs, _buffer())
+
+    def __repr__(self) -> str:
+        return f"MerlFile({self.path!r})"
+
+
+def open_merl(path) -> MerlFile:
+    """A MERL file as a Measurement, its header and size checked now (MerlError, one line), its
+    numbers read when a fit asks for them."""
+    with _checked(path):
+        pass
+    return MerlFile(path)
 
 
 def material_name(path) -> str:
@@ -79,32 +126,46 @@ def read_numbers(path, out: np.ndarray | None = None) -> np.ndarray:
     between files spares a fresh 35 MB allocation per file, whose page faults cost as much as
     the read itself."""
     path = os.fspath(path)
-    try:
-        size = os.path.getsize(path)
-        with open(path, "rb") as f:
-            head = f.read(HEADER.nbytes)
-            if len(head) < HEADER.nbytes:
-                raise MerlError(f"{path}: not a MERL file: {size} bytes, shorter than the 12-byte header")
-            dims = np.frombuffer(head, dtype="<i4")
-            if not np.array_equal(dims, HEADER):
-                raise MerlError(f"{path}: wrong header {tuple(int(d) for d in dims)}, "
-                                f"expected dimensions (90, 90, 180)")
-            if size != FILE_SIZE:
-                raise MerlError(f"{path}: wrong size {size} bytes, expected {FILE_SIZE} "
-                                f"(header + 3 x {N_CELLS} float64); file truncated or padded")
-            if out is None:
-                raw = np.fromfile(f, dtype="<f8", count=3 * N_CELLS)
-                got = raw.size * 8
-            else:
-                raw = out.reshape(-1)
-                if raw.dtype != np.dtype("<f8") or raw.size != 3 * N_CELLS:
-                    raise ValueError(f"read buffer {out.dtype} {out.shape}: expected ({3 * N_CELLS},) float64")
-                got = f.readinto(raw.data.cast("B"))
-    except OSError as e:
-        raise MerlError(f"{path}: cannot read: {e.strerror or e}") from None
+    with _checked(path) as f:
+        if out is None:
+            raw = np.fromfile(f, dtype="<f8", count=3 * N_CELLS)
+            got = raw.size * 8
+        else:
+            raw = out.reshape(-1)
+            if raw.dtype != np.dtype("<f8") or raw.size != 3 * N_CELLS:
+                raise ValueError(f"read buffer {out.dtype} {out.shape}: expected ({3 * N_CELLS},) float64")
+            got = f.readinto(raw.data.cast("B"))
     if got != 3 * N_CELLS * 8:
         raise MerlError(f"{path}: file changed while reading ({got // 8} values read)")
     return raw.reshape(3, N_CELLS)
+
+
+@contextmanager
+def _checked(path) -> Iterator:
+    """The open file, its header and size checked (MerlError, one line, naming the file: also for
+    an OSError while it is open)."""
+    path = os.fspath(path)
+    try:
+        size = os.path.getsize(path)
+        with open(path, "rb") as f:
+            _check_header(path, f, size)
+            yield f
+    except OSError as e:
+        raise MerlError(f"{path}: cannot read: {e.strerror or e}") from None
+
+
+def _check_header(path: str, f, size: int) -> None:
+    """MerlError unless the open file ``f`` of ``size`` bytes has MERL's header and size."""
+    head = f.read(HEADER.nbytes)
+    if len(head) < HEADER.nbytes:
+        raise MerlError(f"{path}: not a MERL file: {size} bytes, shorter than the 12-byte header")
+    dims = np.frombuffer(head, dtype="<i4")
+    if not np.array_equal(dims, HEADER):
+        raise MerlError(f"{path}: wrong header {tuple(int(d) for d in dims)}, "
+                        f"expected dimensions (90, 90, 180)")
+    if size != FILE_SIZE:
+        raise MerlError(f"{path}: wrong size {size} bytes, expected {FILE_SIZE} "
+                        f"(header + 3 x {N_CELLS} float64); file truncated or padded")
 
 
 def read_merl(path) -> MerlTable:
@@ -128,12 +189,17 @@ def read_merl_cells(path, index) -> np.ndarray:
     file's numbers read into a buffer each thread reuses (`read_merl_at`), so that reading many
     tables for a few cells each costs no table-sized allocation (7 ms a table against 48 ms
     for `read_merl` and a gather).  MerlError as `read_merl_at`."""
+    out = np.empty((3, len(index)))
+    read_merl_at(path, [index], [out], _buffer())
+    return out
+
+
+def _buffer() -> np.ndarray:
+    """This thread's read buffer of one table's numbers."""
     buffer = getattr(_NUMBERS, "buffer", None)
     if buffer is None:
         buffer = _NUMBERS.buffer = np.empty(3 * N_CELLS)
-    out = np.empty((3, len(index)))
-    read_merl_at(path, [index], [out], buffer)
-    return out
+    return buffer
 
 
 def read_merl_at(path, indices, outs, buffer: np.ndarray | None = None) -> str:

@@ -1,11 +1,11 @@
-"""Measurement readers by file suffix: one registry that ``read_samples`` and
+"""Measurement readers by file suffix: one registry that ``read_measurement`` and
 ``find_measurements`` (a folder mixing formats) both read.
 
 To add a format, map its suffix (lower case, with the dot) to a callable taking the path and
-returning ``Samples``; a ``DataError`` with one line naming the file is its way to refuse a
-malformed file::
+returning a ``Measurement`` (brdfcl.data.measurement); a ``DataError`` with one line naming the
+file is its way to refuse a malformed file::
 
-    READERS[".binary"] = read_merl_samples      # MERL tables, registered by their module
+    READERS[".brdf"] = read_cornell
 
 The longest registered suffix that ends a file's name wins (``.brdf.gz`` before ``.gz``).
 """
@@ -18,15 +18,17 @@ from pathlib import Path
 from .cornell import read_cornell
 from .csvsamples import read_csv
 from .errors import DataError
-from .samples import Samples
+from .measurement import Measurement
+from .merl import open_merl
 
-Reader = Callable[[Path], Samples]
+Reader = Callable[[Path], Measurement]
 
 READERS: dict[str, Reader] = {
+    ".binary": open_merl,
     ".brdf": read_cornell,
     ".csv": read_csv,
 }
-"""Suffix -> reader.  The hook for more formats (MERL ``.binary``): add an entry."""
+"""Suffix -> reader.  The hook for more formats: add an entry."""
 
 
 def reader_for(path: str | os.PathLike[str]) -> Reader | None:
@@ -36,8 +38,9 @@ def reader_for(path: str | os.PathLike[str]) -> Reader | None:
     return READERS[max(found, key=len)] if found else None
 
 
-def read_samples(path: str | os.PathLike[str]) -> Samples:
-    """Read one measurement file with the reader its suffix names; DataError if none does."""
+def read_measurement(path: str | os.PathLike[str]) -> Measurement:
+    """Read one measurement file with the reader its suffix names; DataError if none does (a
+    reader's own error, e.g. MerlError, for a file it refuses)."""
     reader = reader_for(path)
     if reader is None:
         known = ", ".join(sorted(READERS))
@@ -46,8 +49,10 @@ def read_samples(path: str | os.PathLike[str]) -> Samples:
 
 
 def find_measurements(folder: str | os.PathLike[str]) -> list[Path]:
-    """The files of a folder (not its subfolders) that a registered reader reads, sorted by
-    name; hidden files are skipped.  DataError if the folder cannot be listed."""
+    """The entries of a folder (not inside its subfolders) whose names a registered reader
+    reads, sorted by name; hidden ones are skipped.  A subfolder with such a name is listed, so
+    that its reader says in one line why it cannot be read.  DataError if the folder cannot be
+    listed."""
     root = Path(folder)
     if not root.is_dir():
         raise DataError(folder, "not a folder" if root.exists() else "no such folder")
@@ -55,4 +60,8 @@ def find_measurements(folder: str | os.PathLike[str]) -> list[Path]:
         entries = sorted(root.iterdir(), key=lambda p: p.name)
     except OSError as e:
         raise DataError(folder, f"cannot list: {e.strerror or e}") from None
-    return [p for p in entries if not p.name.startswith(".") and p.is_file() and reader_for(p) is not None]
+    return [p for p in entries if not p.name.startswith(".") and reader_for(p) is not None]
+
+
+read_samples = read_measurement
+"""The reader of a scattered-samples file (Cornell .brdf, CSV): a ``Samples``."""

@@ -32,10 +32,14 @@ from __future__ import annotations
 
 from dataclasses import replace
 from functools import lru_cache
+from typing import TypeVar, cast
 
 import numpy as np
 
+from .measurement import Measurement
 from .samples import RGB_WAVELENGTHS_UM, Channel, Samples
+
+M = TypeVar("M", bound=Measurement)
 
 OBSERVER = "CIE 1931 2 Degree Standard Observer"
 COLOURSPACE = "sRGB"
@@ -87,16 +91,19 @@ def rgb_matrix(wavelengths_um: np.ndarray, illuminant: str = "D65") -> np.ndarra
     return k_mat / k_mat.sum(axis=1, keepdims=True)
 
 
-def to_rgb(samples: Samples, illuminant: str = "D65", *, effective: bool = False) -> Samples:
+def to_rgb(samples: M, illuminant: str = "D65", *, effective: bool = False) -> M:
     """Linear sRGB samples of a spectral measurement (same directions and weights).
 
     Channels are R, G, B with the MERL wavelengths 0.645, 0.526, 0.444 um, or with
-    ``effective_wavelengths(illuminant)`` if ``effective``.  Samples already in R, G, B are
-    returned as they are."""
+    ``effective_wavelengths(illuminant)`` if ``effective``.  A measurement already in R, G, B (a
+    MERL table) is returned as it is; ValueError for another measurement that is not scattered
+    samples."""
     if tuple(c.name for c in samples.channels) == tuple(RGB_WAVELENGTHS_UM):
         return samples
+    if not isinstance(samples, Samples):
+        raise ValueError(f"{samples.path or samples.name}: only scattered spectral samples convert to RGB")
     k_mat = rgb_matrix(samples.wavelengths, illuminant)
     values = samples.values @ k_mat.T
     lams = effective_wavelengths(illuminant) if effective else tuple(RGB_WAVELENGTHS_UM.values())
     channels = tuple(Channel(n, lam) for n, lam in zip(RGB_WAVELENGTHS_UM, lams))
-    return replace(samples, values=values, channels=channels)
+    return cast(M, replace(samples, values=values, channels=channels))

@@ -9,7 +9,6 @@ error metrics mean the same thing as on a table.
 """
 from __future__ import annotations
 
-import math
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -19,34 +18,13 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .errors import DataError
+from .measurement import RGB_WAVELENGTHS_UM, Channel, Layout, Measurement, cell_rows, rgb_channels
 from .weights import sample_weights
-
-RGB_WAVELENGTHS_UM = {"R": 0.645, "G": 0.526, "B": 0.444}
-"""Effective wavelengths (um) of RGB channels: the ones the diffraction lobe uses for MERL tables
-(``rgb.effective_wavelengths`` computes what sRGB under D65 gives, for comparison)."""
 
 DEFAULT_CUTOFF_DEG = 80.0
 """Default angle cut-off of ``Samples.mask``, the same as for MERL tables' cells."""
 
 _ANGLE_TOL = 1e-5          # radians: files round angles (Cornell's 1.570796 for pi/2)
-
-
-@dataclass(frozen=True)
-class Channel:
-    """One measured band: a name (``"R"``, ``"550nm"``) and its (effective) wavelength in um."""
-
-    name: str
-    wavelength_um: float
-
-    def __post_init__(self) -> None:
-        if not (math.isfinite(self.wavelength_um) and self.wavelength_um > 0):
-            raise ValueError(f"channel {self.name!r}: wavelength {self.wavelength_um} um must be positive")
-
-
-def rgb_channels() -> tuple[Channel, Channel, Channel]:
-    """The R, G, B channels with the effective wavelengths of ``RGB_WAVELENGTHS_UM``."""
-    w = RGB_WAVELENGTHS_UM
-    return Channel("R", w["R"]), Channel("G", w["G"]), Channel("B", w["B"])
 
 
 def _frozen(a: ArrayLike, ndim: int) -> np.ndarray:
@@ -57,8 +35,33 @@ def _frozen(a: ArrayLike, ndim: int) -> np.ndarray:
     return out
 
 
+__all__ = ["DEFAULT_CUTOFF_DEG", "RGB_WAVELENGTHS_UM", "Channel", "SampleLayout", "Samples", "make_samples",
+           "rgb_channels"]
+
+
+class SampleLayout(Layout):
+    """The cells of one scattered measurement: its samples, in file order; few enough that every
+    stage of a fit uses all of them (not ``dense``)."""
+
+    def __init__(self, samples: Samples):
+        self.samples = samples
+        self._weights: dict = {}
+
+    def select(self, cutoff_deg: float | None = DEFAULT_CUTOFF_DEG) -> np.ndarray:
+        return np.flatnonzero(self.samples.mask(cutoff_deg))
+
+    def weights(self, index: np.ndarray, cutoff_deg: float | None = DEFAULT_CUTOFF_DEG) -> np.ndarray:
+        """``Samples.weights_within`` the cut-off (computed once per cut-off)."""
+        if cutoff_deg not in self._weights:
+            self._weights[cutoff_deg] = self.samples.weights_within(cutoff_deg)
+        return np.asarray(self._weights[cutoff_deg][index], dtype=np.float64)
+
+    def rows(self, index: np.ndarray) -> tuple[np.ndarray, ...]:
+        return cell_rows(self.samples.wi[index], self.samples.wo[index])
+
+
 @dataclass(frozen=True, eq=False)
-class Samples:
+class Samples(Measurement):
     """Scattered samples of one material.  Arrays are float64 and read-only.
 
     Angles in radians, normal = +z, ``phi`` measured in one frame for both directions (so
@@ -93,14 +96,13 @@ class Samples:
     def n_samples(self) -> int:
         return int(self.theta_i.size)
 
-    @property
-    def n_channels(self) -> int:
-        return len(self.channels)
+    @cached_property
+    def layout(self) -> SampleLayout:
+        return SampleLayout(self)
 
-    @property
-    def wavelengths(self) -> np.ndarray:
-        """Each channel's wavelength (um), float64 (C,)."""
-        return np.array([c.wavelength_um for c in self.channels], dtype=np.float64)
+    def values_at(self, indices, outs) -> None:
+        for o, idx in zip(outs, indices):
+            o[...] = self.values[idx].T
 
     @cached_property
     def wi(self) -> np.ndarray:

@@ -1,14 +1,16 @@
 """Cell sets: the geometry of the fitted cells and every material's measured values there, on the
 device.
 
-MERL tables share one geometry (a selection of table cells, computed once); scattered samples
-bring one per material.  Data are (material, channel, cell), NaN where missing, padded to a
-multiple of the vector width and split into blocks under the device's largest allocation.
+A batch of measurements (brdfcl.data.measurement) that share one layout (MERL tables) shares
+one geometry, uploaded once (``geo_stride`` 0); otherwise (scattered samples) each material
+brings its own, padded to the longest.  Data are (material, channel, cell), NaN where missing,
+padded to a multiple of the vector width and split into blocks under the device's largest
+allocation.
 """
 from __future__ import annotations
 
 import os
-import threading
+from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any
@@ -16,49 +18,76 @@ from typing import Any
 import numpy as np
 import pyopencl as cl
 
-from brdfcl.data.geometry import DEFAULT_CUTOFF_DEG, table_geometry
-from brdfcl.data.merl import N_CELLS
+from brdfcl.data.geometry import DEFAULT_CUTOFF_DEG, TABLE
+from brdfcl.data.measurement import Layout, Measurement
 from brdfcl.model.lobes.cells import Cells
 
 _CPUS = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
-READ_WORKERS = min(4, _CPUS)     # threads reading MERL files (extract): the CPUs this process may use
+READ_WORKERS = min(4, _CPUS)     # threads reading measurement files: the CPUs this process may use
+
+
+@dataclass(frozen=True)
+class Place:
+    """Where a material's cells are: its layout and the indices of the cells (in the layout's
+    order), each with a weight scale (a coarse subset's stride; 1: none)."""
+
+    layout: Layout
+    index: np.ndarray
+    scale: np.ndarray | float = 1.0
+
+    def weights(self, cutoff_deg: float | None) -> np.ndarray:
+        return self.layout.weights(self.index, cutoff_deg) * self.scale
 
 
 @dataclass
 class CellSet:
-    """Selected cells of the table for a list of materials, on one device.
+    """Selected cells of a batch of materials, on one device.
 
-    Geometry rows: sin th, cos th, cos td, cos ti, cos to, weight: one geometry for all
-    materials (MERL tables, ``geo_stride`` 0) or one per material (scattered samples,
-    ``geom_host`` (n_mat, 6, n)).  Data: (material, channel, cell), NaN where a cell is missing.  Padded to a multiple
-    of the vector width with copies of the first cell at weight 0."""
+    Geometry rows: sin th, cos th, cos td, cos ti, cos to, weight, for all materials at once
+    (``places`` of one entry, ``geo_stride`` 0) or one per material (``geom_host`` (n_mat, 6, n)).
+    Data: (material, channel, cell), NaN where a cell is missing.  Padded to a multiple of the
+    vector width with harmless cells at weight 0."""
 
     names: list
-    index: np.ndarray                 # table cell index of each (unpadded) cell
+    index: np.ndarray                 # the shared cells' indices; per material: positions 0 .. longest-1
     n_cells: int                      # padded length
     dtype: type
     geom_host: np.ndarray
     blocks: list = field(default_factory=list)   # [(first material, count, data buffer)]
     geom_buf: Any = None              # cl.Buffer of geom_host
-    per_material: list | None = None  # scattered samples: each material's float64 Cells
+    places: list = field(default_factory=list)   # [Place] shared (one) or per material
+    cutoff_deg: float | None = DEFAULT_CUTOFF_DEG
     targets: dict = field(default_factory=dict)  # (metric, cosw) -> per block, buffer of g(m cw)
+    n_channels: int = 3
+    _cells: dict = field(default_factory=dict)
+
+    @property
+    def shared(self) -> bool:
+        return len(self.places) <= 1
 
     @property
     def geo_stride(self) -> int:
         """Offset between materials' geometries in the buffer (0: shared)."""
-        return 0 if self.per_material is None else 6 * self.n_cells
-
-    n_channels: int = 3
+        return 0 if self.shared else 6 * self.n_cells
 
     @property
     def n_materials(self):
         return len(self.names)
 
+    def place(self, mat: int = 0) -> Place:
+        return self.places[0 if self.shared else mat]
+
     def cells(self, mat: int = 0) -> Cells:
-        """float64 reference cells of this set (unpadded; of material ``mat`` for scattered data)."""
-        if self.per_material is not None:
-            return self.per_material[mat]
-        return Cells.from_geometry(table_geometry(), self.index)
+        """float64 reference cells of a material (unpadded; the same for all when shared)."""
+        key = 0 if self.shared else mat
+        if key not in self._cells:
+            p = self.place(mat)
+            self._cells[key] = Cells(*p.layout.rows(p.index))
+        return self._cells[key]
+
+    def weights(self, mat: int = 0) -> np.ndarray:
+        """float64 weights of a material's cells (unpadded), coarse scale included."""
+        return self.place(mat).weights(self.cutoff_deg)
 
     def block_of(self, mat):
         for b, (first, count, _) in enumerate(self.blocks):
@@ -68,70 +97,100 @@ class CellSet:
 
 
 def select_cells(cutoff_deg=DEFAULT_CUTOFF_DEG, stride=1, offset=0):
-    """Table indices of the fitted cells: above the horizon, inside the cut-off, every stride-th."""
-    idx = np.flatnonzero(table_geometry().mask(cutoff_deg))
+    """Table indices of the fitted cells of a MERL table: above the horizon, inside the cut-off,
+    every stride-th."""
+    idx = TABLE.select(cutoff_deg)
     return idx[offset::stride] if stride > 1 else idx
 
 
-def extract(tables, indices, dtype=np.float32, on_error=None, workers=READ_WORKERS):
-    """Read each table once and keep its values at each index set: (names, [(n_mat, C, n_i)]).
-
-    ``tables`` yields MerlTable objects, callables returning one, or readers with a
-    ``values_at(indices, outs, buffer)`` method (brdfcl.data.inputs.FileReader: the file's values go
-    straight to the result, through one reusable read buffer per thread); files are read lazily,
-    by ``workers`` threads (reading and subsetting a file release the GIL, so the cores read in
-    parallel).  A table that raises is reported to ``on_error(item, exc)`` and skipped (re-raised if
-    None)."""
-    items = list(tables)
-    out = [np.empty((len(items), 3, idx.size), dtype) for idx in indices]       # MERL: 3 channels
-    local = threading.local()
-
+def read_values(measurements: Sequence[Measurement], indices: Callable[[int], Sequence[np.ndarray]],
+                dtype=np.float32, on_error: Callable[[Measurement, Exception], None] | None = None,
+                workers: int = READ_WORKERS) -> tuple[list[int], list[list[np.ndarray]]]:
+    """Each measurement's values at each of its index sets (``indices(k)`` for measurement k):
+    (the positions of those read, [[(C, n_i) per index set] per one read]).  Files are read by
+    ``workers`` threads (reading and gathering release the GIL, so the cores read in parallel).
+    One that raises is told to ``on_error(measurement, exc)`` and left out (re-raised if None)."""
     def one(k):
-        item = items[k]
+        m = measurements[k]
         try:
-            if hasattr(item, "values_at"):
-                if not hasattr(local, "buffer"):
-                    local.buffer = np.empty(3 * N_CELLS)
-                return item.values_at(indices, [o[k] for o in out], local.buffer), None
-            t = item() if callable(item) else item
-            for o, idx in zip(out, indices):
-                t.brdf_at(idx, dtype, out=o[k])
-            return t.name, None
+            outs = [np.empty((m.n_channels, np.size(i)), dtype) for i in indices(k)]
+            m.values_at(indices(k), outs)
+            return outs, None
         except Exception as e:
             return None, e
 
-    names, kept = [], []
+    kept, values = [], []
     with ThreadPoolExecutor(max_workers=max(1, workers)) as pool:
-        for k, (name, err) in enumerate(pool.map(one, range(len(items)))):
+        for k, (outs, err) in enumerate(pool.map(one, range(len(measurements)))):
             if err is not None:
                 if on_error is None:
                     raise err
-                on_error(items[k], err)
+                on_error(measurements[k], err)
                 continue
-            names.append(name)
             kept.append(k)
-    if len(kept) == len(items):
-        return names, out
-    return names, [o[kept] for o in out]
+            values.append(outs)
+    return kept, values
 
 
-def build_cellset(ctx, names, index, data, dtype=np.float32, pad_to=16, weight_scale=None,
-                  max_alloc=None):
-    """Upload geometry and per-material data (n_mat, C, n) for the given table cells."""
-    g = table_geometry()
-    n = index.size
-    n_pad = max(pad_to, -(-n // pad_to) * pad_to)
-    full = np.concatenate([index, np.full(n_pad - n, index[0] if n else 0)])
-    geom = np.stack([np.sin(g.theta_h[full]), np.cos(g.theta_h[full]), np.cos(g.theta_d[full]),
-                     g.cos_i[full], g.cos_o[full], g.weight[full]])
-    if weight_scale is not None:
-        geom[5, :n] *= weight_scale
-    geom = geom.astype(dtype)
-    geom[5, n:] = 0
-    mf = cl.mem_flags
-    geom_buf = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=geom)
-    blocks = _data_blocks(ctx, data, n, n_pad, dtype, max_alloc)
-    return CellSet(list(names), index, n_pad, dtype, geom, blocks, geom_buf, n_channels=data.shape[1])
+def extract(tables, indices, dtype=np.float32, on_error=None, workers=READ_WORKERS):
+    """The values of measurements sharing one layout (MERL tables) at each index set:
+    (names, [(n_mat, C, n_i)]); one that cannot be read is told to ``on_error`` and left out."""
+    items = list(tables)
+    kept, values = read_values(items, lambda k: indices, dtype, on_error, workers)
+    names = [items[k].name for k in kept]
+    out = [np.stack([v[j] for v in values]) if values else np.empty((0, 3, np.size(idx)), dtype)
+           for j, idx in enumerate(indices)]
+    return names, out
+
+
+def _pad(n: int, pad_to: int) -> int:
+    return max(pad_to, -(-n // pad_to) * pad_to)
+
+
+def _rows(place: Place, cutoff_deg, n_pad: int) -> np.ndarray:
+    """(6, n_pad) float64 geometry rows of a place, padded with copies of its first cell at weight 0."""
+    n = place.index.size
+    rows = np.empty((6, n_pad))
+    if n:
+        rows[:5, :n] = np.stack(place.layout.rows(place.index))
+        rows[5, :n] = place.weights(cutoff_deg)
+        rows[:, n:] = rows[:, :1]
+    else:
+        rows[:5] = 0.5
+    rows[5, n:] = 0
+    return rows
+
+
+def build_cellset(ctx, names, places: Sequence[Place], data, dtype=np.float32, pad_to=16,
+                  cutoff_deg=DEFAULT_CUTOFF_DEG, max_alloc=None):
+    """Upload a batch: ``places`` one shared Place, or one per material; ``data`` (n_mat, C, n)
+    for a shared place, else a list of (C, n_i) per material."""
+    places = list(places)
+    if len(places) <= 1:
+        place = places[0]
+        n = place.index.size
+        n_pad = _pad(n, pad_to)
+        geom = _rows(place, cutoff_deg, n_pad).astype(dtype)
+        index = place.index
+        if not isinstance(data, np.ndarray):                # one material's (C, n) in a list
+            data = np.stack(list(data))
+        blocks = _data_blocks(ctx, data, n, n_pad, dtype, max_alloc)
+        n_ch = data.shape[1]
+    else:
+        n_ch = {v.shape[0] for v in data}
+        if len(n_ch) > 1:
+            raise ValueError(f"materials with {sorted(n_ch)} channels cannot share one cell set")
+        n_ch = n_ch.pop()
+        longest = max(p.index.size for p in places)
+        n_pad = _pad(longest, pad_to)
+        geom = np.stack([_rows(p, cutoff_deg, n_pad) for p in places]).astype(dtype)
+        padded = np.full((len(places), n_ch, n_pad), np.nan)
+        for m, v in enumerate(data):
+            padded[m, :, :v.shape[1]] = v
+        index = np.arange(longest)
+        blocks = _data_blocks(ctx, padded, n_pad, n_pad, dtype, max_alloc)
+    geom_buf = cl.Buffer(ctx, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR, hostbuf=geom)
+    return CellSet(list(names), index, n_pad, dtype, geom, blocks, geom_buf, places, cutoff_deg, n_channels=n_ch)
 
 
 def _data_blocks(ctx, data, n, n_pad, dtype, max_alloc=None):
@@ -151,26 +210,3 @@ def _data_blocks(ctx, data, n, n_pad, dtype, max_alloc=None):
         blocks.append((first, len(chunk), cl.Buffer(ctx, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
                                                     hostbuf=chunk)))
     return blocks
-
-
-def build_sample_cellset(ctx, names, cells, weights, values, dtype=np.float32, pad_to=16, max_alloc=None):
-    """Upload scattered measurements: per material its Cells, weights (n_i,) and values (C, n_i),
-    padded to the longest at weight 0 (materials may hold different sample counts)."""
-    n_ch = {v.shape[0] for v in values}
-    if len(n_ch) > 1:
-        raise ValueError(f"materials with {sorted(n_ch)} channels cannot share one cell set")
-    longest = max((len(c) for c in cells), default=0)
-    n_pad = max(pad_to, -(-longest // pad_to) * pad_to)
-    geom = np.zeros((len(cells), 6, n_pad))
-    data = np.full((len(cells), n_ch.pop() if n_ch else 3, n_pad), np.nan)
-    geom[:, :5] = 0.5                      # padding: a harmless cell (weight 0)
-    for m, (c, w, v) in enumerate(zip(cells, weights, values)):
-        k = len(c)
-        geom[m, :, :k] = np.stack([c.sh, c.ch, c.cd, c.ci, c.co, w])
-        data[m, :, :k] = v
-    geom = geom.astype(dtype)
-    geom_buf = cl.Buffer(ctx, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR, hostbuf=geom)
-    blocks = _data_blocks(ctx, data, n_pad, n_pad, dtype, max_alloc)
-    index = np.arange(longest)
-    return CellSet(list(names), index, n_pad, dtype, geom, blocks, geom_buf, per_material=list(cells),
-                   n_channels=data.shape[1])

@@ -15,10 +15,11 @@ import time
 import numpy as np
 import pyopencl as cl
 
-from brdfcl.data.geometry import DEFAULT_CUTOFF_DEG, table_geometry
+from brdfcl.data.geometry import DEFAULT_CUTOFF_DEG, TABLE, table_geometry
+from brdfcl.data.measurement import Layout
 from brdfcl.device import buildlog, selftest, width
-from brdfcl.device.cellsets import CellSet, build_cellset, build_sample_cellset, extract, select_cells
-from brdfcl.device.platforms import has_fp64, is_cpu, pick_device
+from brdfcl.device.cellsets import CellSet, Place, build_cellset, extract, read_values, select_cells
+from brdfcl.device.platforms import has_fp64, is_cpu, pick_device, short_name
 from brdfcl.device.program import (
     KERNELS,
     ProgramError,
@@ -35,8 +36,8 @@ from brdfcl.kernels.codegen import KernelOptions, jtj_pairs, n_outputs, render
 from brdfcl.model.compose import Model
 from brdfcl.model.metrics import METRICS
 
-__all__ = ["CellSet", "Engine", "build_cellset", "build_sample_cellset", "context_for", "default_options",
-           "extract", "select_cells"]
+__all__ = ["CellSet", "Engine", "Place", "build_cellset", "context_for", "default_options", "extract",
+           "read_values", "select_cells"]
 
 _log = logging.getLogger("brdfcl")
 _CONTEXTS: dict = {}
@@ -127,29 +128,38 @@ class Engine:
                 failures.append(ProgramError(f"self-test {result.detail}"))
         last = failures[-1]
         hint = f"; try a narrower --vector-width than {self.opt.vw}" if self.opt.vw > 1 and last.log is None else ""
-        head = f"{self.model.spec} ({self.opt.real} x{self.opt.vw}) fails on {self.device.name}: "
+        head = f"{self.model.spec} ({self.opt.real} x{self.opt.vw}) fails on {short_name(self.device)}: "
         raise ProgramError(buildlog.line(head, last.cause, last.log, hint), last.cause, last.log)
 
     # --- data ------------------------------------------------------------------------------------
     def cellset(self, tables, index=None, cutoff_deg=DEFAULT_CUTOFF_DEG, **kw) -> CellSet:
-        """A cell set of the given tables (MerlTable objects) at the given cells."""
+        """A cell set of measurements sharing the table layout (MerlTable objects) at the given cells."""
         index = select_cells(cutoff_deg) if index is None else np.asarray(index)
         names, (data,) = extract(tables, [index], self.dtype)
         return self.upload(names, index, data, **kw)
 
-    def upload(self, names, index, data, **kw) -> CellSet:
-        """A cell set from values already extracted at ``index`` (see `extract`)."""
-        return build_cellset(self.ctx, names, index, data, self.dtype, pad_to=max(16, self.opt.vw), **kw)
+    def upload(self, names, index, data, weight_scale=None, layout: Layout = TABLE,
+               cutoff_deg=DEFAULT_CUTOFF_DEG, max_alloc=None) -> CellSet:
+        """A cell set of materials sharing one layout (by default the MERL table's), from their
+        values (n_mat, C, n) already read at ``index``; ``weight_scale``: each cell's (a coarse
+        subset's strides)."""
+        place = Place(layout, np.asarray(index), 1.0 if weight_scale is None else weight_scale)
+        return self.upload_places(names, [place], data, cutoff_deg, max_alloc)
 
-    def upload_samples(self, names, cells, weights, values) -> CellSet:
-        """A cell set of scattered measurements, each material with its own geometry (see
-        `build_sample_cellset`); the model's channels must match the values' (C, n_i)."""
-        bad = [n for n, v in zip(names, values) if v.shape[0] != self.model.n_channels]
+    def upload_places(self, names, places, data, cutoff_deg=DEFAULT_CUTOFF_DEG, max_alloc=None) -> CellSet:
+        """A cell set of one shared Place ((n_mat, C, n) data) or one per material ([(C, n_i)])."""
+        bad = [n for n, v in zip(names, data) if v.shape[0] != self.model.n_channels]
         if bad:
-            raise ValueError(f"{bad[0]}: {values[names.index(bad[0])].shape[0]} channels, but the model "
+            raise ValueError(f"{bad[0]}: {data[list(names).index(bad[0])].shape[0]} channels, but the model "
                              f"has {self.model.n_channels}")
-        return build_sample_cellset(self.ctx, names, cells, weights, values, self.dtype,
-                                    pad_to=max(16, self.opt.vw))
+        return build_cellset(self.ctx, names, places, data, self.dtype, pad_to=max(16, self.opt.vw),
+                             cutoff_deg=cutoff_deg, max_alloc=max_alloc)
+
+    def upload_cells(self, names, cells, weights, values) -> CellSet:
+        """A cell set at arbitrary cells: per material its Cells, weights (n_i,) and values
+        (C, n_i) (a quadrature's, a figure's)."""
+        places = [Place(_GivenCells(c, w), np.arange(len(c))) for c, w in zip(cells, weights)]
+        return self.upload_places(names, places, list(values), None)
 
     # --- launches --------------------------------------------------------------------------------
     def _params(self, values):
@@ -254,3 +264,20 @@ class Engine:
                                  cs.geom_buf, np.int32(cs.n_cells), np.int32(cs.geo_stride), prm, mat, obuf)
         cl.enqueue_copy(self.queue, out, obuf)
         return out[:, :, :cs.index.size]
+
+
+class _GivenCells(Layout):
+    """Cells given as they are (brdfcl.model.lobes.cells.Cells with their weights)."""
+
+    def __init__(self, cells, weights):
+        self._cells, self._weights = cells, np.asarray(weights, dtype=np.float64)
+
+    def select(self, cutoff_deg):
+        return np.arange(len(self._cells))
+
+    def weights(self, index, cutoff_deg):
+        return self._weights[index]
+
+    def rows(self, index):
+        c = self._cells
+        return c.sh[index], c.ch[index], c.cd[index], c.ci[index], c.co[index]

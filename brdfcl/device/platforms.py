@@ -40,6 +40,13 @@ def all_devices():
     return [(p, d) for p in plats for d in p.get_devices()]
 
 
+def short_name(device) -> str:
+    """A device's name for a one-line message: PoCL's CPU devices without their
+    ``pthread-<LLVM CPU>-`` prefix (``pthread-skylake-avx512-Intel(R) Xeon(R) Processor`` is the
+    Xeon), other names as the driver gives them."""
+    return re.sub(r"^pthread-[a-z0-9_.-]*?(?=[A-Z])", "", device.name)
+
+
 def has_fp64(device):
     return bool(device.double_fp_config) or "cl_khr_fp64" in device.extensions
 

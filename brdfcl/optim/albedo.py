@@ -70,7 +70,7 @@ def _on_engine(engine, theta_i_deg: tuple, values: np.ndarray) -> np.ndarray:
     sets = _SETS.setdefault(engine, {})
     if theta_i_deg not in sets:
         n = len(cells)
-        sets[theta_i_deg] = engine.upload_samples(["albedo"], [cells], [np.ones(n)],
+        sets[theta_i_deg] = engine.upload_cells(["albedo"], [cells], [np.ones(n)],
                                                   [np.zeros((engine.model.n_channels, n))])
     cs = sets[theta_i_deg]
     return np.concatenate([engine.predict(cs, values[s:s + CHUNK], 0).astype(np.float64)

@@ -1,10 +1,12 @@
 """Fitting a model to a whole database at once: the pipeline of stages.
 
-tables -> cell sets on the device (full table and a coarse subset) -> `global_search` on the
-coarse set -> `pick_starts` on the preview cells (every n-th cell of the table; the full table
-without a preview) -> Levenberg-Marquardt on the preview, then on the full table (`refine`)
--> `evaluate` and `assess` each material as it finishes -> `FitResult`.  Every stage batches all
-materials into each launch and returns a `StageResult`.  The loss and its penalties are
+measurements (brdfcl.data.measurement) -> cell sets on the device (the fitted cells and, for a
+dense layout such as a table's, a coarse subset and every n-th cell) -> `global_search` on the
+coarse set -> `pick_starts` on the preview cells (the fitted cells without a preview) ->
+Levenberg-Marquardt on the preview, then on every fitted cell (`refine`) -> `evaluate` and
+`assess` each material as it finishes -> `FitResult`.  Every stage batches all materials into
+each launch and returns a `StageResult`.  One path for every format: what differs between a
+table and scattered samples is their layout's, not the fit's.  The loss and its penalties are
 brdfcl.optim.objective, the parameter spaces brdfcl.optim.spaces, the global search's methods
 brdfcl.optim.search.
 
@@ -19,19 +21,20 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from brdfcl.device.engine import Engine, extract, select_cells
+from brdfcl.data.geometry import coarse_cells
+from brdfcl.data.measurement import Measurement
+from brdfcl.device.engine import Engine, Place, extract, read_values, select_cells
 from brdfcl.model.compose import Model
-from brdfcl.model.lobes.cells import Cells
 from brdfcl.optim.assessment import assess, bounds_hit, evaluate
 from brdfcl.optim.lm import LMOptions
-from brdfcl.optim.objective import Objective, Target, penalty_scale
+from brdfcl.optim.objective import Objective, Target
 from brdfcl.optim.options import GLOBAL_METHODS, FitOptions
 from brdfcl.optim.refine import NOISE_FLOOR, refine
 from brdfcl.optim.result import FitResult, StageResult
-from brdfcl.optim.search import coarse_cells, global_search, material_seed, pick_starts
+from brdfcl.optim.search import global_search, material_seed, pick_starts
 
-__all__ = ["GLOBAL_METHODS", "FitOptions", "FitResult", "Fitter", "LMOptions", "StageResult", "Targets",
-           "bounds_hit", "coarse_cells", "extract", "fit_samples", "fit_tables", "load_batch", "material_seed",
+__all__ = ["GLOBAL_METHODS", "FitOptions", "FitResult", "Fitter", "LMOptions", "Loaded", "StageResult", "Targets",
+           "bounds_hit", "coarse_cells", "extract", "fit", "fit_samples", "fit_tables", "material_seed",
            "select_cells"]
 
 
@@ -41,16 +44,27 @@ def _quiet(line: str) -> None:
 
 @dataclass(frozen=True)
 class Targets:
-    """One batch on the device: the full table, the global search's coarse subset and, with
-    ``FitOptions.preview_stride`` > 1, every n-th cell of the table for a first local pass."""
+    """One batch on the device: the fitted cells, the global search's coarse subset and, with
+    ``FitOptions.preview_stride`` > 1 on a dense layout, every n-th cell for a first local pass."""
 
     full: Target
     coarse: Target
     preview: Target | None = None
 
 
+@dataclass(frozen=True)
+class Loaded:
+    """A batch read and on the device: the names of the measurements that could be read, their
+    targets, and their values at the fitted cells ((n, C, cells), NaN-padded per material)."""
+
+    names: list
+    targets: Targets
+    data: np.ndarray
+    read: list               # positions in the given measurements of those read
+
+
 class Fitter:
-    """Compiled model + cell selection; `fit` runs the pipeline on one batch of materials."""
+    """Compiled model + cell selection; `fit` runs the pipeline on one batch of measurements."""
 
     assess_results = True   # attach standard errors, albedo and flags to each result (brdfcl.optim.assessment)
 
@@ -64,60 +78,103 @@ class Fitter:
         self.engine = engine or Engine(self.model, device=opts.device, real=opts.real,
                                        metric=opts.metric, cosw=opts.cosw, vector_width=opts.vector_width)
         self.objective = Objective(self.engine, self.model, peak_order=opts.ct_peak)
-        self.full_index = select_cells(opts.cutoff_deg)
-        self.coarse_index, self.coarse_scale = coarse_cells(
-            self.full_index, opts.coarse_stride, opts.coarse_peak_bins, opts.coarse_peak_stride)
 
-    def targets(self, names: Sequence[str], full_data: np.ndarray, coarse_data: np.ndarray) -> Targets:
-        """Upload a batch (values at ``full_index`` and ``coarse_index``, see `load_batch`); both
-        sets carry the full table's penalty scale."""
-        scale = penalty_scale(self.full_index, full_data)
-        full = self.engine.upload(names, self.full_index, full_data)
-        coarse = self.engine.upload(names, self.coarse_index, coarse_data, weight_scale=self.coarse_scale)
-        s = self.opts.preview_stride
-        preview = None
+    @property
+    def full_index(self) -> np.ndarray:
+        """The fitted cells of a MERL table."""
+        return select_cells(self.opts.cutoff_deg)
+
+    @property
+    def coarse_index(self) -> np.ndarray:
+        """The global search's cells of a MERL table."""
+        return self._subsets(self.full_index)[0]
+
+    def _subsets(self, full: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        o = self.opts
+        return coarse_cells(full, o.coarse_stride, o.coarse_peak_bins, o.coarse_peak_stride)
+
+    def places(self, m: Measurement, dense: bool) -> list[Place]:
+        """A measurement's cells in each stage: fitted, coarse and (with a preview) every n-th."""
+        o = self.opts
+        full = m.layout.select(o.cutoff_deg)
+        if not dense:
+            return [Place(m.layout, full)]
+        coarse, scale = m.layout.coarse(full, o.coarse_stride, o.coarse_peak_bins, o.coarse_peak_stride)
+        out = [Place(m.layout, full), Place(m.layout, coarse, scale)]
+        s = o.preview_stride
         if s > 1:
-            preview = Target(self.engine.upload(names, self.full_index[s // 2::s], full_data[:, :, s // 2::s],
-                                                weight_scale=float(s)), scale)
-        return Targets(Target(full, scale), Target(coarse, scale), preview)
+            out.append(Place(m.layout, full[s // 2::s], float(s)))
+        return out
 
-    def fit(self, names: Sequence[str], full_data: np.ndarray, coarse_data: np.ndarray,
-            on_result: Callable[[FitResult], None] | None = None,
-            log: Callable[[str], None] = _quiet, start: np.ndarray | None = None) -> list[FitResult]:
-        """Fit every material; ``on_result(FitResult)`` is called as each one finishes.  ``start``
-        (n, model parameters), natural values: a warm start, the local stage from there, no global
-        search (e.g. a richer form from a simpler form's fit)."""
+    def load(self, measurements: Sequence[Measurement], on_error: Callable | None = None) -> Loaded:
+        """Read a batch and upload it: a batch whose measurements share one layout (tables) shares
+        one geometry; on a dense layout (every one's) the global search gets a coarse subset and,
+        with ``preview_stride`` > 1, the local search every n-th cell first.  A measurement that
+        cannot be read goes to ``on_error(measurement, exc)`` (raised without one)."""
+        ms = list(measurements)
+        bad = [m for m in ms if m.n_channels != self.model.n_channels]
+        if bad:
+            raise ValueError(f"{bad[0].path or bad[0].name}: {bad[0].n_channels} channels, but the model has "
+                             f"{self.model.n_channels}")
+        dense = bool(ms) and all(m.layout.dense for m in ms)
+        shared = bool(ms) and all(m.layout is ms[0].layout for m in ms)
+        if shared:
+            common = self.places(ms[0], dense)
+            places = [common] * len(ms)
+        else:
+            places = [self.places(m, dense) for m in ms]
+        read, values = read_values(ms, lambda k: [p.index for p in places[k]], self.engine.dtype, on_error)
+        names = [ms[k].name for k in read]
+        places = [places[k] for k in read]
+        n_sets = len(places[0]) if places else 1
+
+        def stage(j: int) -> tuple:
+            if shared:
+                stacked = (np.stack([v[j] for v in values]) if values
+                           else np.empty((0, self.model.n_channels, common[j].index.size), self.engine.dtype))
+                return [common[j]], stacked
+            return [p[j] for p in places], [v[j] for v in values]
+
+        cut = self.opts.cutoff_deg
+        full_places, full_data = stage(0)
+        scale = np.array([np.sum(np.isfinite(v[0]) * p[0].weights(cut)) for v, p in zip(values, places)])
+        sets = []
+        for j in range(n_sets):
+            at, values_j = stage(j)
+            sets.append(self.engine.upload_places(names, at, values_j, cutoff_deg=cut))
+        full = Target(sets[0], scale)
+        coarse = Target(sets[1], scale) if n_sets > 1 else full
+        preview = Target(sets[2], scale) if n_sets > 2 else None
+        if shared:
+            data = full_data
+        else:
+            data = np.full((len(names), self.model.n_channels, sets[0].index.size), np.nan, self.engine.dtype)
+            for i, v in enumerate(full_data):
+                data[i, :, :v.shape[1]] = v
+        return Loaded(names, Targets(full, coarse, preview), data, read)
+
+    def fit(self, measurements: Sequence[Measurement], on_result: Callable[[FitResult], None] | None = None,
+            log: Callable[[str], None] = _quiet, start: np.ndarray | None = None,
+            on_error: Callable | None = None) -> list[FitResult]:
+        """Fit every measurement of a batch (the model's channels; see `load`); ``on_result(FitResult)``
+        is called as each one finishes.  ``start`` (n, model parameters), natural values: a warm
+        start, the local stage from there, no global search (e.g. a richer form from a simpler
+        form's fit).  A measurement that cannot be read goes to ``on_error`` and has no result."""
         t0 = time.perf_counter()
-        return self.run(list(names), self.targets(names, full_data, coarse_data), full_data, t0, on_result, log,
+        b = self.load(measurements, on_error)
+        if start is not None:
+            start = np.asarray(start)[b.read]
+        return self.fit_loaded(b, on_result, log, start, t0)
+
+    def fit_loaded(self, b: Loaded, on_result: Callable[[FitResult], None] | None = None,
+                   log: Callable[[str], None] = _quiet, start: np.ndarray | None = None,
+                   t0: float | None = None) -> list[FitResult]:
+        """`fit` on a batch already read and uploaded (by a fitter whose cells this one can read,
+        `same_cells`)."""
+        if not b.names:
+            return []
+        return self.run(b.names, b.targets, b.data, time.perf_counter() if t0 is None else t0, on_result, log,
                         start)
-
-    def sample_targets(self, samples: Sequence) -> tuple[list[str], Targets, np.ndarray]:
-        """Upload scattered measurements (brdfcl.data.samples.Samples, the model's channels): each
-        material's samples inside the cut-off with their weights (``Samples.weights_within``), its
-        own geometry.  The set is small, so the global search runs on all of it too.  Returns
-        (names, targets, data (n_mat, C, longest) padded with NaN)."""
-        names, cells, weights, values = [], [], [], []
-        for s in samples:
-            ok = s.mask(self.opts.cutoff_deg)
-            names.append(s.name)
-            cells.append(Cells.from_directions(s.wi[ok], s.wo[ok]))
-            weights.append(np.asarray(s.weights_within(self.opts.cutoff_deg)[ok], dtype=np.float64))
-            values.append(np.asarray(s.values[ok], dtype=np.float64).T)
-        cs = self.engine.upload_samples(names, cells, weights, values)
-        data = np.full((len(names), self.model.n_channels, cs.index.size), np.nan)
-        for i, v in enumerate(values):
-            data[i, :, :v.shape[1]] = v
-        scale = np.array([np.sum(np.isfinite(v) * w) for v, w in zip(values, weights)])
-        target = Target(cs, scale)
-        return names, Targets(target, target), data
-
-    def fit_samples(self, samples: Sequence, on_result: Callable[[FitResult], None] | None = None,
-                    log: Callable[[str], None] = _quiet, start: np.ndarray | None = None) -> list[FitResult]:
-        """Fit scattered measurements (Samples with the model's channels), all in one batch;
-        ``start`` as in `fit`."""
-        t0 = time.perf_counter()
-        names, targets, data = self.sample_targets(samples)
-        return self.run(names, targets, data, t0, on_result, log, start)
 
     def run(self, names: list[str], t: Targets, full_data: np.ndarray, t0: float,
             on_result: Callable[[FitResult], None] | None = None,
@@ -147,6 +204,16 @@ class Fitter:
             if step.finished.mat.size:
                 batch.finish(_finished_status(evaluate(objective, t.full, step.finished), previewed, step.start, o))
         return batch.results()
+
+
+def same_cells(a: Fitter, b: Fitter) -> bool:
+    """Whether two fitters' engines can read one upload: the same OpenCL context (one per device
+    in a process), precision, padding, target transform and cells."""
+    ea, eb = a.engine, b.engine
+    cells = ("cutoff_deg", "coarse_stride", "coarse_peak_bins", "coarse_peak_stride", "preview_stride")
+    return (ea.ctx is eb.ctx and ea.dtype == eb.dtype and max(16, ea.opt.vw) == max(16, eb.opt.vw)
+            and (ea.opt.metric, ea.opt.cosw) == (eb.opt.metric, eb.opt.cosw)
+            and all(getattr(a.opts, k) == getattr(b.opts, k) for k in cells))
 
 
 def _warm_start(objective: Objective, values: np.ndarray, n: int) -> StageResult:
@@ -258,33 +325,24 @@ class _Batch:
         for r in out:
             r.stages["local"] = t_total - self.t_global - self.t_assess
             if self.fitter.assess_results:
-                r.stages["uncertainty"] = self.t_assess   # issue 17: assess() of the whole batch
+                r.stages["uncertainty"] = self.t_assess   # assess() of the whole batch
             r.stages["total"] = t_total
         return out
 
 
-def load_batch(items: Sequence, fitter: Fitter,
-               on_error: Callable | None = None) -> tuple[list[str], np.ndarray, np.ndarray]:
-    """(names, full data, coarse data) for items that are MerlTables or callables returning one."""
-    names, (full, coarse) = extract(items, [fitter.full_index, fitter.coarse_index],
-                                    fitter.engine.dtype, on_error=on_error)
-    return names, full, coarse
-
-
-def fit_samples(samples: Sequence, opts: FitOptions | None = None, **kw) -> list[FitResult]:
-    """Fit scattered measurements (brdfcl.data.samples.Samples) that share one set of channels,
-    in one batch; the model gets one channel per band, at its wavelength."""
+def fit(measurements: Sequence[Measurement], opts: FitOptions | None = None, **kw) -> list[FitResult]:
+    """Fit measurements (any format, brdfcl.data.readers.read_measurement) that share one set of
+    channels, in one batch; the model gets one channel per band, at its wavelength."""
     opts = opts or FitOptions(**kw)
-    samples = list(samples)
-    bands = {tuple(s.wavelengths) for s in samples}
+    measurements = list(measurements)
+    bands = {tuple(float(x) for x in m.wavelengths) for m in measurements}
     if len(bands) != 1:
-        raise ValueError(f"samples with {len(bands)} different sets of wavelengths: fit each set on its own")
-    return Fitter(opts, lambdas=bands.pop()).fit_samples(samples)
+        raise ValueError(f"measurements with {len(bands)} different sets of wavelengths: fit each set on its own")
+    lambdas = bands.pop()
+    rgb = lambdas == tuple(Model(opts.model).lambdas)
+    return Fitter(opts, lambdas=None if rgb else lambdas).fit(measurements)
 
 
-def fit_tables(tables: Sequence, opts: FitOptions | None = None, **kw) -> list[FitResult]:
-    """Fit MerlTable objects in one batch; returns a list of FitResult."""
-    opts = opts or FitOptions(**kw)
-    f = Fitter(opts)
-    names, full, coarse = load_batch(tables, f)
-    return f.fit(names, full, coarse)
+fit_samples = fit
+fit_tables = fit
+"""``fit`` under the names of its inputs (scattered samples, MERL tables)."""

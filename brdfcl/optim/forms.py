@@ -26,7 +26,7 @@ import numpy as np
 
 from brdfcl.model.compose import Model, ModelError, parse_lobe
 from brdfcl.optim.assessment import assess
-from brdfcl.optim.fit import FitOptions, FitResult, Fitter
+from brdfcl.optim.fit import FitOptions, FitResult, Fitter, same_cells
 from brdfcl.optim.selection import select
 
 NDF_FORMS = ("ggx", "gtr", "beckmann")
@@ -239,53 +239,50 @@ def resolve(forms: str | None, opts: FitOptions, model_given: bool = False) -> s
     return forms if asked_for(forms) else None
 
 
-def _same_cells(a: Fitter, b: Fitter) -> bool:
-    """Whether two fitters' engines can read one upload: the same OpenCL context (one per device
-    in a process), precision, padding, target transform and cells."""
-    ea, eb = a.engine, b.engine
-    return (ea.ctx is eb.ctx and ea.dtype == eb.dtype and max(16, ea.opt.vw) == max(16, eb.opt.vw)
-            and (ea.opt.metric, ea.opt.cosw) == (eb.opt.metric, eb.opt.cosw) and a.opts.cutoff_deg == b.opts.cutoff_deg
-            and np.array_equal(a.coarse_index, b.coarse_index) and a.opts.preview_stride == b.opts.preview_stride)
-
-
 class FormFitter:
     """Fits a batch in every candidate form (``forms``: {key: model spec}, `form_keys`) and keeps
-    each material's form of least penalised error.  ``loader``: the Fitter whose cells a batch is
-    loaded on (brdfcl.optim.fit.load_batch); every form fits the same cells.  Only the chosen fit
-    of a material is assessed (standard errors, albedo, flags): the others are thrown away."""
+    each material's form of least penalised error; every form fits the same cells, read once.
+    Only the chosen fit of a material is assessed (standard errors, albedo, flags): the others are
+    thrown away."""
 
     def __init__(self, opts: FitOptions, forms: dict[str, str], lambdas: Sequence[float] | None = None):
         self.forms = dict(forms)
         self.fitters = {k: Fitter(replace(opts, model=s), lambdas=lambdas) for k, s in self.forms.items()}
-        self.loader = next(iter(self.fitters.values()))
 
-    def fit(self, names: Sequence[str], full: np.ndarray, coarse: np.ndarray,
-            on_result: Callable[[FitResult, dict], None] | None = None,
-            log: Callable[[str], None] = lambda s: None) -> list[tuple[FitResult, dict]]:
+    def fit(self, measurements: Sequence, on_result: Callable[[FitResult, dict], None] | None = None,
+            log: Callable[[str], None] = lambda s: None,
+            on_error: Callable | None = None) -> list[tuple[FitResult, dict]]:
         """[(the chosen form's fit, what NAME.json records of the choice: ``form``, ``form_errors``)]
-        per material, in order; ``on_result(result, record)`` as each is chosen.  A material whose
-        every form failed keeps the first form's (failed) fit."""
-        names = list(names)
-        return self._choose(len(names), lambda f: (names, f.targets(names, full, coarse), full), on_result, log)
+        per measurement that could be read (the others go to ``on_error``), in order;
+        ``on_result(result, record)`` as each is chosen.  A material whose every form failed keeps
+        the first form's (failed) fit."""
+        measurements = list(measurements)
+        first: list = []
 
-    def fit_samples(self, samples: Sequence, on_result: Callable[[FitResult, dict], None] | None = None,
-                    log: Callable[[str], None] = lambda s: None) -> list[tuple[FitResult, dict]]:
-        """`fit` for scattered measurements (brdfcl.optim.fit.Fitter.fit_samples)."""
-        samples = list(samples)
-        return self._choose(len(samples), lambda f: f.sample_targets(samples), on_result, log)
+        def upload(f: Fitter) -> tuple:
+            b = f.load(measurements if not first else [measurements[k] for k in first[0]],
+                       on_error if not first else None)
+            if not first:
+                first.append(b.read)
+            return b.names, b.targets, b.data
+        return self._choose(upload, on_result, log)
 
-    def _choose(self, n: int, upload: Callable, on_result, log) -> list[tuple[FitResult, dict]]:
+    def _choose(self, upload: Callable, on_result, log) -> list[tuple[FitResult, dict]]:
         """``upload(fitter)``: (names, targets, data) of the batch on that fitter's engine, made once
-        for the forms whose engines can read the same buffers (`_same_cells`)."""
+        for the forms whose engines can read the same buffers (`same_cells`)."""
         t0 = time.perf_counter()
+        n = -1
         fitted: dict[str, list[FitResult]] = {}
         uploaded: dict[str, tuple] = {}
         for key in fit_order(self.forms):
             f = self.fitters[key]
             src = start_source(key, fitted)
             start = None if src is None else src[1](fitted[src[0]], f.model)
-            same = next((k for k in uploaded if _same_cells(self.fitters[k], f)), None)
+            same = next((k for k in uploaded if same_cells(self.fitters[k], f)), None)
             names, targets, data = uploaded[key] = uploaded[same] if same is not None else upload(f)
+            n = len(names)
+            if not n:
+                return []
             assess, f.assess_results = f.assess_results, False
             try:
                 fitted[key] = f.run(names, targets, data, time.perf_counter(), log=log, start_values=start)

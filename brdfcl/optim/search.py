@@ -17,7 +17,6 @@ from dataclasses import dataclass
 import nlopt
 import numpy as np
 
-from brdfcl.data.merl import N_PD, N_TD
 from brdfcl.optim.lockstep import Problem, run_lockstep
 from brdfcl.optim.objective import Objective, Target
 from brdfcl.optim.options import FitOptions
@@ -26,21 +25,6 @@ from brdfcl.optim.result import StageResult
 
 def _quiet(line: str) -> None:
     pass
-
-
-def coarse_cells(full_index: np.ndarray, stride: int, peak_bins: int,
-                 peak_stride: int) -> tuple[np.ndarray, np.ndarray]:
-    """A coarse subset of the cells ``full_index`` for the global search: (table indices, weight
-    scales).  Denser near the specular peak, where sharp lobes live in few theta_h bins; the
-    weights are scaled by the strides so that its loss estimates the full one."""
-    th_idx = full_index // (N_TD * N_PD)
-    peak = th_idx < peak_bins
-    near = np.flatnonzero(peak)[::peak_stride]
-    rest = np.flatnonzero(~peak)[::stride]
-    idx = np.concatenate([near, rest])
-    scale = np.concatenate([np.full(near.size, float(peak_stride)), np.full(rest.size, float(stride))])
-    order = np.argsort(idx)
-    return full_index[idx[order]], scale[order]
 
 
 def material_seed(seed: int, name: str) -> int:

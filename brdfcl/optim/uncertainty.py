@@ -45,7 +45,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from brdfcl.data.geometry import table_geometry
+from brdfcl.data.geometry import TABLE
 from brdfcl.device.engine import CellSet, Engine
 from brdfcl.model.compose import Model
 from brdfcl.model.lobes.cells import Cells
@@ -102,13 +102,13 @@ def meat(model: Model, index: np.ndarray, data: np.ndarray, values: np.ndarray, 
     out = np.zeros((len(values), k, k))
     for i, v in enumerate(np.atleast_2d(values)):
         row = i if rows is None else rows[i]
-        if cs is not None and cs.per_material is not None:
+        if cs is not None and not cs.shared:
             every = cs.cells(row)
             sub = np.arange(stride // 2, len(every), stride)
             cells = Cells(*(getattr(every, a)[sub] for a in ("sh", "ch", "cd", "ci", "co")))
-            w, cos_i = np.asarray(cs.geom_host[row, 5, sub], dtype=np.float64), cells.ci
+            w, cos_i = cs.weights(row)[sub], cells.ci
         else:
-            sub, cells, w, cos_i = _subsample(index, stride)
+            sub, cells, w, cos_i = _subsample(index, stride, cs)
         cw = cos_i if cosw else np.ones(sub.size)
         w2 = w * w
         m = np.asarray(data[row][:, sub], dtype=np.float64)
@@ -127,16 +127,18 @@ def meat(model: Model, index: np.ndarray, data: np.ndarray, values: np.ndarray, 
 _SUBSAMPLES: dict = {}
 
 
-def _subsample(index, stride):
-    """(positions in index, Cells, weights, cos theta_i) of every stride-th cell, kept per index set."""
+def _subsample(index, stride, cs: CellSet | None = None):
+    """(positions in index, Cells, weights, cos theta_i) of every stride-th cell of a shared layout
+    (``cs``'s; without one, the MERL table's), kept per index set."""
     key = (id(index), index.size, stride)            # the entry keeps index alive: ids stay unique
     if key not in _SUBSAMPLES or _SUBSAMPLES[key][0] is not index:
-        g = table_geometry()
+        layout = cs.place().layout if cs is not None else TABLE
         sub = np.arange(stride // 2, index.size, stride)
         idx = index[sub]
         if len(_SUBSAMPLES) > 8:
             _SUBSAMPLES.clear()
-        _SUBSAMPLES[key] = (index, sub, Cells.from_geometry(g, idx), g.weight[idx], g.cos_i[idx])
+        cells = Cells(*layout.rows(idx))
+        _SUBSAMPLES[key] = (index, sub, cells, layout.weights(idx, None if cs is None else cs.cutoff_deg), cells.ci)
     return _SUBSAMPLES[key][1:]
 
 

@@ -49,7 +49,7 @@ class Evaluator:
 
     def _upload(self, cells):
         n = len(cells)
-        return self.engine.upload_samples(["report"], [cells], [np.ones(n)],
+        return self.engine.upload_cells(["report"], [cells], [np.ones(n)],
                                           [np.zeros((self.model.n_channels, n))])
 
     def _at(self, which, values):

@@ -14,7 +14,6 @@ import logging
 import os
 from pathlib import Path
 
-from brdfcl.data.inputs import is_table
 from brdfcl.device.errors import DeviceError, ProgramError
 from brdfcl.model.compose import Model
 from brdfcl.report.view.drawer import Drawers, InProcess
@@ -38,7 +37,8 @@ def _key(e):
 def draw_images(rep, entries, read_cells, engine=None) -> dict:
     """{name: images} of every entry with a measurement: kept in ``rep/NAME/`` when newer than
     its table and fit, else drawn, the fits of one model evaluated together (CHUNK at a time);
-    ``read_cells(path, index)``: a table's BRDF (3, len(index)) at the views' cells."""
+    ``read_cells(path, index)``: a table's BRDF (3, len(index)) at the views' cells (the MERL
+    table's, brdfcl.data.geometry.table_values)."""
     out: dict = {}
     todo: dict[str, list] = {}
     for e in entries:
@@ -47,7 +47,7 @@ def draw_images(rep, entries, read_cells, engine=None) -> dict:
         stamp = _stamp(rep / e.name)
         if stamp.get("key") == _key(e):
             out[e.name] = _existing(rep / e.name, e.name, stamp)
-        elif not is_table(e.table):
+        elif not e.tabulated:
             out[e.name] = _sample_images(rep / e.name, e)
         else:
             todo.setdefault(e.model, []).append(e)

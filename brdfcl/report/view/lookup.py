@@ -5,47 +5,17 @@ from __future__ import annotations
 
 import numpy as np
 
-from brdfcl.data.geometry import bin_centres
+from brdfcl.data.geometry import index_coordinates, nearest_cells, rusinkiewicz
 from brdfcl.data.merl import N_PD, N_TD, N_TH, MerlTable
 
-
-def rusinkiewicz(wi, wo):
-    """(theta_h, theta_d, phi_d in [0, pi)) of direction pairs (n = z): the inverse of
-    brdfcl.data.geometry.directions, phi_d folded by reciprocity as MERL does."""
-    h = wi + wo
-    h = h / np.linalg.norm(h, axis=-1, keepdims=True)
-    th = np.arccos(np.clip(h[..., 2], -1.0, 1.0))
-    ph = np.arctan2(h[..., 1], h[..., 0])
-    x = wi[..., 0] * np.cos(ph) + wi[..., 1] * np.sin(ph)          # Rz(-phi_h) wi
-    y = -wi[..., 0] * np.sin(ph) + wi[..., 1] * np.cos(ph)
-    st, ct = np.sin(th), np.cos(th)
-    dx, dz = x * ct - wi[..., 2] * st, x * st + wi[..., 2] * ct        # Ry(-theta_h)
-    return th, np.arccos(np.clip(dz, -1.0, 1.0)), np.mod(np.arctan2(y, dx), np.pi)
-
-
-def _index_coordinates(wi, wo):
-    """Fractional (theta_h, theta_d, phi_d) bin coordinates of direction pairs (those of
-    brdfcl.data.geometry.bin_centres: theta_h's is 90 sqrt(theta_h / (pi/2)) - 1/2)."""
-    th, td, pd = rusinkiewicz(np.asarray(wi, float), np.asarray(wo, float))
-    _, td0, pd0 = bin_centres()
-    return [np.clip(N_TH * np.sqrt(th / (np.pi / 2)) - 0.5, 0, N_TH - 1),
-            np.clip(td / (td0[1] - td0[0]) - 0.5, 0, N_TD - 1), pd / (pd0[1] - pd0[0]) - 0.5]
-
-
-def nearest_cells(wi, wo, stride=(1, 1, 1)):
-    """The table cell index (n,) whose bin holds each direction pair; with ``stride`` (theta_h,
-    theta_d, phi_d) the nearest of every stride-th bin along each axis (a coarser table)."""
-    u = _index_coordinates(wi, wo)
-    i = [np.floor(x / s + 0.5).astype(int) * s for x, s in zip(u, stride)]
-    i[0], i[1] = (np.clip(x, 0, (n - 1) // s * s) for x, n, s in zip(i[:2], (N_TH, N_TD), stride))
-    return (i[2] % N_PD) + N_PD * (i[1] + N_TD * i[0])
+__all__ = ["corners", "interpolate", "nearest_cells", "rusinkiewicz", "table_lookup"]
 
 
 def corners(wi, wo):
     """Trilinear interpolation of the table at direction pairs (n, 3): the cell indices (8, n) of
     the neighbouring bin centres and their weights (8, n); phi_d is periodic (reciprocity).
     Computed once for points looked up in many tables (`interpolate`)."""
-    u = _index_coordinates(wi, wo)
+    u = index_coordinates(wi, wo)
     lo = [np.minimum(np.floor(x).astype(int), n - 2) for x, n in zip(u, (N_TH, N_TD, N_PD + 1))]
     fr = [x - i for x, i in zip(u, lo)]
     index, weight = np.empty((8, lo[0].size), dtype=np.int64), np.empty((8, lo[0].size))

@@ -16,7 +16,6 @@ import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from brdfcl.data.inputs import is_table
 from brdfcl.model.compose import Model
 from brdfcl.optim.selection import PENALTY
 from brdfcl.report.files import writing
@@ -62,7 +61,7 @@ class Entry:
     params: dict                          # name -> fitted value
     errors: dict
     status: str
-    table: str | None = None              # path of the measured table
+    table: str | None = None              # path of the measurement
     verdict: str | None = None
     figures: list = field(default_factory=list)   # analysis figure paths
     uncertainty: dict | None = None
@@ -71,6 +70,7 @@ class Entry:
     lambdas: tuple | None = None          # the channels' wavelengths (um); None: R, G, B
     form: str | None = None               # the reflection lobe's form, where chosen (brdfcl.optim.forms)
     form_errors: dict | None = None       # {form: {"rmse_log", "penalised"}} of every candidate
+    tabulated: bool = True                # a table (spheres and slices from it), not scattered samples
 
     @classmethod
     def from_document(cls, doc, table=None, **kw):
@@ -183,7 +183,7 @@ def material_page(e, images, rep) -> str:
     h.append("<h2>Parameters</h2>" + _param_table(e))
     if e.albedo:
         h.append("<h2>Directional albedo of the fit</h2>" + _albedo_table(e.albedo, e.fitted_model().channels))
-    slices = ("Slices: BRDF x cos against the outgoing angle, and the lobes" if e.table is None or is_table(e.table)
+    slices = ("Slices: BRDF x cos against the outgoing angle, and the lobes" if e.table is None or e.tabulated
               else "Measured samples and the fit in the plane of incidence")
     for key, head in (("spheres", "Lit spheres: measured | fitted | difference"), ("slices", slices)):
         if images.get(key):

@@ -9,7 +9,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from brdfcl.data.merl import read_merl_cells
+from brdfcl.data.errors import DataError
+from brdfcl.data.geometry import table_values
+from brdfcl.data.merl import MerlError
+from brdfcl.data.readers import read_measurement
 from brdfcl.report.output import read_results
 from brdfcl.report.writers.analysis_figures import figure_paths
 from brdfcl.report.writers.base import FIT, Item, Job, Writer
@@ -27,11 +30,12 @@ class ReportPages(Writer):
         # local: the pages draw with matplotlib, which a run without them never loads
         from brdfcl.report.view.pages import Entry, write_report
         if job.kind == FIT:
-            entries = [Entry.from_document(d, job.tables[d["material"]]) for d in read_results(job.out)
-                       if d["material"] in job.tables]
+            entries = [Entry.from_document(d, path, tabulated=_tabulated(path)) for d in read_results(job.out)
+                       if (path := job.tables.get(d["material"])) is not None]
             title = f"brdfcl fits in {job.out}"
         else:
             entries = [Entry.from_result(i.analysis.final, i.table, verdict=i.analysis.verdict,
+                                         tabulated=_tabulated(i.table),
                                          figures=figure_paths(job.out, i.analysis) if job.figures else [])
                        for i in items if i.analysis is not None]
             if not entries:
@@ -39,6 +43,20 @@ class ReportPages(Writer):
             title = f"brdfcl analysis of {len(entries)} materials"
         job.log(f"report: the pages of {len(entries)} material{'s' if len(entries) != 1 else ''} "
                 f"(images drawn where a fit or table changed)")
-        index = write_report(job.out, entries, read_merl_cells, title=title, engine=job.engine)
+        index = write_report(job.out, entries, _read_cells, title=title, engine=job.engine)
         job.log(f"report: {index}")
         return index
+
+
+def _tabulated(path) -> bool:
+    """Whether the measurement at ``path`` is a table (a dense layout: spheres and slices drawn
+    from it); False for scattered samples and for a file that can no longer be read."""
+    try:
+        return read_measurement(path).layout.dense
+    except (DataError, MerlError, OSError, ValueError):
+        return False
+
+
+def _read_cells(path, index):
+    """A table's BRDF at the MERL table's cells ``index`` (the views')."""
+    return table_values(read_measurement(path), index)
