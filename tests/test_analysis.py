@@ -36,6 +36,7 @@ def test_pure_diffraction_follows_level_lines_of_f():
     assert w.ratio < 0.5 and w.consistent
 
 
+@pytest.mark.slow
 def test_specular_lobe_is_not_diffraction():
     """A Cook-Torrance lobe's level lines at phi_d = 90 are tilted by 1/(cos ti cos to), half as
     much as f's in its tails: against a bare theta_h axis it scored ~0.7; against the CT prediction
@@ -67,6 +68,7 @@ def test_missing_cells_do_not_break_the_test():
     assert np.isfinite(g.score).all() and g.mean_score > 0.9
 
 
+@pytest.mark.slow
 def test_demo_verdicts_and_outputs(demo_db, tmp_path):
     res = {a.name: a for a in analyze(demo_db, tmp_path)}
     verdicts = {n: a.verdict for n, a in res.items()}
@@ -89,6 +91,7 @@ def test_demo_verdicts_and_outputs(demo_db, tmp_path):
     assert page.count("<tr class=") == 5 and "synth-smooth-metal_components.png" in page
 
 
+@pytest.mark.slow
 def test_fit_all_select_lobes(demo_db, tmp_path):
     paths = [str(demo_db / "synth-smooth-plastic.binary"), str(demo_db / "synth-smooth-metal.binary")]
     d = tmp_path / "db"

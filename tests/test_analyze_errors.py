@@ -48,6 +48,7 @@ def only_bad(demo_db, tmp_path):
     return d, bad_files(d, (demo_db / f"{GOOD}.binary").read_bytes()[:FILE_SIZE // 3 + 1])
 
 
+@pytest.mark.slow
 def test_bad_files_beside_good_ones(mixed, tmp_path):
     db, problems = mixed
     out = tmp_path / "out"
@@ -124,6 +125,7 @@ def test_read_only_out(demo_db, tmp_path):
     (f"{GOOD}.exr.tmp.exr", f"{GOOD}.exr"),                                # OpenEXR: a RuntimeError
     (f"figures/{GOOD}_gradient.png.tmp.png", f"figures/{GOOD}_gradient.png"),   # matplotlib: an OSError
 ])
+@pytest.mark.slow
 def test_write_failure_mid_run_is_one_line(mixed, tmp_path, blocked, named):
     """The temporary file an output is written to is taken by a folder: the write fails after the fits."""
     db, _ = mixed

@@ -57,6 +57,7 @@ def analysed(tmp_path_factory):
     return {a.name: a for a in results}, out
 
 
+@pytest.mark.slow
 def test_the_verdicts_of_known_materials(analysed):
     res, _ = analysed
     assert res["diffracting"].verdict == "diffraction"
@@ -102,6 +103,7 @@ def test_the_report_says_what_was_run(analysed):
     assert "diffracting_spectral.png" in page
 
 
+@pytest.mark.slow
 def test_krylon_is_analysed(krylon, tmp_path):
     (a,) = analyze([krylon.path], None)
     assert a.verdict == "none" and a.margins()["verdict_by"].endswith("lobe") and a.spectral is not None

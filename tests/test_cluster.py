@@ -37,6 +37,7 @@ def test_cluster_matches_in_process(client, demo_db, tmp_path):
     assert (tmp_path / "cluster" / "summary.csv").read_text().count("\n") == 5
 
 
+@pytest.mark.slow
 def test_worker_killed_mid_run(client, demo_db, tmp_path):
     paths = [demo_db / f"{n}.binary" for n in NAMES]
     pids = list(client.run(os.getpid).values())

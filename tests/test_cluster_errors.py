@@ -39,6 +39,7 @@ def pyopencl_error():
     raise AssertionError("a zero-size buffer was accepted")
 
 
+@pytest.mark.slow
 def test_cli_worker_failure_is_one_line(db, tmp_path):
     args = ["fit-all", str(db), "--out", str(tmp_path / "o"), "--workers", "1", "--device", "no-such-device",
             "--model", "diffuse+ggx", "--quiet"]
@@ -58,6 +59,7 @@ def test_cli_worker_failure_is_one_line(db, tmp_path):
     assert r.stderr.count("Compute Failed") == 0
 
 
+@pytest.mark.slow
 def test_api_worker_failure(db, tmp_path):
     client = make_client(workers=1)
     try:

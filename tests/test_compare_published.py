@@ -6,6 +6,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
 import compare_published as cp  # noqa: E402
@@ -14,6 +15,7 @@ from brdfcl.data.merl import read_merl  # noqa: E402
 from brdfcl.model.compose import Model  # noqa: E402
 
 
+@pytest.mark.slow
 def test_score_takes_a_model_per_material_and_scores_the_published_fits(demo_db):
     table = dataclasses.replace(read_merl(demo_db / "synth-smooth-metal.binary"), name="alum-bronze")
     ggx, gtr = Model("diffuse+diffraction+ggx"), Model("diffuse+diffraction+gtr:smith:dielectric")

@@ -89,6 +89,7 @@ CHECKS = [check_one_material, check_evaluate, check_database, check_forms, check
           check_device]
 
 
+@pytest.mark.slow
 def test_api_page_examples_run(demo_db, tmp_path, monkeypatch):
     db = tmp_path / "merl"
     db.mkdir()

@@ -34,7 +34,7 @@ def _reference(model, cells, meas, w, values, metric):
     return p, np.sum(ww * r * r), 2 * np.einsum("cn,cnk->k", ww * r, u), np.einsum("cn,cnk,cnl->kl", ww, u, u)
 
 
-@pytest.mark.parametrize("real, tol", [("double", 1e-10), ("float", 1e-5)])
+@pytest.mark.parametrize("real, tol", [pytest.param("double", 1e-10, marks=pytest.mark.slow), ("float", 1e-5)])
 @pytest.mark.parametrize("spec", SPECS)
 def test_kernels_match_reference(tables, spec, real, tol):
     rng = np.random.default_rng(len(spec))
@@ -66,6 +66,7 @@ def test_kernels_match_reference(tables, spec, real, tol):
             assert E[k][e] == pytest.approx(v, rel=tol), k
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("real", ["float", "double"])
 def test_no_nan_at_extremes(tables, real):
     """Bounds, alpha at 1e-4, a at both bounds, zero amplitudes, grazing cells included."""

@@ -57,6 +57,7 @@ def _disc(size):
     return np.stack([x, y, np.sqrt(np.clip(1 - r2, 0, 1))], -1), np.sqrt(r2)
 
 
+@pytest.mark.slow
 def test_sphere_matches_brdfcl_rendering(mi, fit):
     """Directional light of unit irradiance: radiance f(wi, wo) max(0, n.wi) per pixel."""
     from brdfcl.report.view.sphere import render_model_sphere
@@ -81,6 +82,7 @@ def test_sphere_matches_brdfcl_rendering(mi, fit):
     assert np.all(img[r > 1 + 2.0 / size] == 0)              # nothing off the sphere
 
 
+@pytest.mark.slow
 def test_bsdf_sampling_in_mitsuba_gives_the_albedo(mi, fit):
     """Constant environment of radiance 1, directions from the BSDF's sample() alone: each pixel
     is the directional albedo of its view angle, computed here from brdfcl's Model.reference."""

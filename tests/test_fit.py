@@ -36,6 +36,7 @@ def test_exact_fits_in_the_default_batch_stop_converged(demo_db):
         assert res[name].errors["rmse_log"] < 1e-5 and res[name].status.startswith("converged"), res[name].status
 
 
+@pytest.mark.slow
 def test_fit_all_outputs_resume_and_export(demo_db, tmp_path):
     out = tmp_path / "out"
     args = [sys.executable, "-m", "brdfcl.app.cli", "fit-all", str(demo_db), "--out", str(out),

@@ -25,6 +25,7 @@ def _run(*args):
     return subprocess.run([*CLI, "fit-all", *map(str, args), "--quiet", "--no-report"], capture_output=True, text=True)
 
 
+@pytest.mark.slow
 def test_a_folder_mixing_formats(mixed, tmp_path):
     out = tmp_path / "o"
     r = _run(mixed, "--out", out)
@@ -42,6 +43,7 @@ def test_a_folder_mixing_formats(mixed, tmp_path):
     assert "2 already done" in again.stdout
 
 
+@pytest.mark.slow
 def test_rgb_fits_the_spectra_as_srgb_and_exports_them(mixed, tmp_path):
     pytest.importorskip("colour")
     out = tmp_path / "o"
@@ -52,6 +54,7 @@ def test_rgb_fits_the_spectra_as_srgb_and_exports_them(mixed, tmp_path):
     assert (out / "krylon_blue.binary").stat().st_size > 0
 
 
+@pytest.mark.slow
 def test_spectral_fits_are_not_exported_as_merl(mixed, tmp_path):
     out = tmp_path / "o"
     r = subprocess.run([*CLI, "fit-all", str(mixed), "--out", str(out), "--export-merl", "--no-report"],
@@ -60,6 +63,7 @@ def test_spectral_fits_are_not_exported_as_merl(mixed, tmp_path):
     assert "krylon_blue: no merl export: it is a fit of 31 spectral channels" in r.stderr
 
 
+@pytest.mark.slow
 def test_analyze_takes_the_same_mixed_folder(mixed, tmp_path):
     out = tmp_path / "a"
     r = subprocess.run([*CLI, "analyze", str(mixed), "--out", str(out), "--quiet", "--no-figures",
@@ -86,6 +90,7 @@ def test_two_files_of_one_material_name_give_one_result(krylon, tmp_path):
             f"{src / 'krylon_blue.brdf'} (one result per name; rename one file to fit both)") in r.stderr
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("rgb", [False, True])
 def test_sample_fits_get_report_pages(krylon, tmp_path, rgb):
     if rgb:
@@ -101,6 +106,7 @@ def test_sample_fits_get_report_pages(krylon, tmp_path, rgb):
         tmp_path / "o" / "report" / "krylon_blue.html").read_text()
 
 
+@pytest.mark.slow
 def test_select_lobes_takes_scattered_samples(krylon, tmp_path):
     src = tmp_path / "in"
     src.mkdir()

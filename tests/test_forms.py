@@ -69,6 +69,7 @@ def _material(form, seed):
     return make_samples(None, ti, pi, to, po, p, ch, name=form)
 
 
+@pytest.mark.slow
 def test_the_true_form_of_each_synthetic_material_is_chosen():
     samples = [_material(form, seed) for seed, form in enumerate(TRUTH)]
     specs = form_variants("diffuse+ggx:smith:schlick", ("ggx", "gtr", "beckmann"), ("schlick", "dielectric"))
@@ -79,6 +80,7 @@ def test_the_true_form_of_each_synthetic_material_is_chosen():
         assert record["form"] == s.name and res.model == specs[s.name] and res.name == s.name, (s.name, pen)
 
 
+@pytest.mark.slow
 def test_fit_all_records_the_chosen_form(demo_db, tmp_path):
     src, out = tmp_path / "in", tmp_path / "o"
     src.mkdir()
@@ -134,6 +136,7 @@ def test_a_containing_form_starts_from_the_contained_forms_fits():
     np.testing.assert_array_equal(x[1], gtr.defaults())                    # nothing usable: the defaults
 
 
+@pytest.mark.slow
 def test_fit_all_refines_gtr_from_the_ggx_fits(demo_db, tmp_path):
     src, out = tmp_path / "in", tmp_path / "o"
     src.mkdir()

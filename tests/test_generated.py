@@ -35,6 +35,7 @@ def test_text_is_made_once_and_a_damaged_file_is_made_again(fresh):
     assert _cache.generated("c", "k1", make) == "generated text" and calls == [1, 1, 1]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind,name", [("ndf", "gtr"), ("shadowing", "smith_abc"), ("fresnel", "dielectric"),
                                        ("psd", "abc")])
 def test_kept_code_is_what_generation_gives(fresh, monkeypatch, kind, name):

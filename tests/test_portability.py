@@ -183,6 +183,7 @@ def _runner(tmp_path, device):
     return lambda: subprocess.run([sys.executable, "-c", RUN], capture_output=True, text=True, env=env, timeout=600)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("device", POCL)
 @pytest.mark.parametrize("damage", list(CORRUPT))
 def test_a_broken_pocl_cache_does_not_break_the_next_run(tmp_path, device, damage):
@@ -207,6 +208,7 @@ def _scramble_middle(d):
         p.write_bytes(bytes(data))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("device", POCL)
 def test_damage_inside_a_cache_file_is_seen_by_its_fingerprint(tmp_path, device):
     run = _runner(tmp_path, device)
@@ -266,6 +268,7 @@ def test_the_default_is_the_first_device_that_builds_in_order():
     assert ranks == sorted(ranks)            # float64 first; PoCL, newest first, then Intel's, then any
 
 
+@pytest.mark.slow
 def test_info_shows_status_width_reason_and_self_test():
     r = subprocess.run([sys.executable, "-m", "brdfcl.app.cli", "info"], capture_output=True, text=True, timeout=900)
     assert r.returncode == 0, r.stderr

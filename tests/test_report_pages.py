@@ -64,6 +64,7 @@ def test_page_loads_in_chromium_without_errors(run, page):
     assert not console, console
 
 
+@pytest.mark.slow
 def test_cli_writes_the_report_and_can_skip_it(demo_db, tmp_path):
     d = tmp_path / "db"
     d.mkdir()

@@ -58,6 +58,7 @@ def db(demo_db, tmp_path):
     return d
 
 
+@pytest.mark.slow
 def test_export_into_the_input_folder_is_refused(db, tmp_path):
     before = snapshot(tmp_path)
     r = cli("fit-all", db, "--out", db, "--export-merl", "--model", MODEL, "--quiet")
@@ -141,6 +142,7 @@ def test_options_are_recorded_from_fit_options(db, tmp_path):
                                           select_lobes=True).options)[0] == "differs"
 
 
+@pytest.mark.slow
 def test_resume_checks_the_options(db, tmp_path):
     out = tmp_path / "out"
     base = ["fit-all", db, "--out", out, "--model", MODEL, "--quiet"]
@@ -189,6 +191,7 @@ def test_results_of_an_older_brdfcl_count_as_different(db, tmp_path):
     assert len(rep.results) == 1 and "options" in json.loads(p.read_text())
 
 
+@pytest.mark.slow
 def test_missing_export_is_written_without_refitting(db, tmp_path):
     out = tmp_path / "out"
     base = ["fit-all", db, "--out", out, "--model", MODEL, "--quiet"]

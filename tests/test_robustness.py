@@ -41,6 +41,7 @@ def mixed_db(demo_db, tmp_path):
     return d
 
 
+@pytest.mark.slow
 def test_bad_files_are_skipped_with_one_line_each(mixed_db, tmp_path):
     out = tmp_path / "out"
     r = cli("fit-all", mixed_db, "--out", out, "--model", "diffuse+ggx", "--quiet")
@@ -57,6 +58,7 @@ def test_bad_files_are_skipped_with_one_line_each(mixed_db, tmp_path):
     assert "fitted 3 materials" in r.stdout and "7 skipped" in r.stdout
 
 
+@pytest.mark.slow
 def test_empty_folder_bad_output_bad_model(tmp_path, demo_db):
     (tmp_path / "empty").mkdir()
     r = cli("fit-all", tmp_path / "empty", "--out", tmp_path / "o")
@@ -94,6 +96,7 @@ def test_file_disappearing_during_the_run(demo_db, tmp_path):
     assert "synth-smooth-plastic.binary" in path and "disappeared" in why
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGKILL])
 def test_interrupted_run_resumes(demo_db, tmp_path, sig):
     out = tmp_path / "out"
@@ -134,6 +137,7 @@ def test_extreme_materials_end_cleanly(tmp_path, name, brdf):
         assert r.errors["rel_rmse"] < 0.05
 
 
+@pytest.mark.slow
 def test_merl_reader_fuzz(tmp_path):
     """Random headers, sizes and contents: a table or a MerlError, never anything else."""
     rng = np.random.default_rng(7)

@@ -130,6 +130,7 @@ def _first_choice():
     return devs, order
 
 
+@pytest.mark.slow
 def test_a_platform_that_cannot_build_is_left_out_with_one_line(tmp_path):
     """The default platform's check made to fail: the next device that builds is used, one line
     says which and why, and nothing else changes."""
@@ -159,6 +160,7 @@ def test_a_platform_that_cannot_build_is_left_out_with_one_line(tmp_path):
     assert max(map(len, _lines(info))) <= LONGEST
 
 
+@pytest.mark.slow
 def test_no_device_that_builds_is_one_line_with_what_to_install(tmp_path, demo_db):
     env = {buildcheck.BREAK_ENV: "opencl", "BRDFCL_CACHE_DIR": str(tmp_path)}      # every platform
     r = _run(["-m", "brdfcl.app.cli", "fit-all", str(demo_db), "--out", str(tmp_path / "out"),

@@ -3,6 +3,7 @@ import subprocess
 import sys
 
 import numpy as np
+import pytest
 
 from brdfcl.data.geometry import table_geometry
 from brdfcl.data.merl import read_merl
@@ -37,6 +38,7 @@ def test_synth_noise_and_missing(tmp_path):
     assert t.n_missing > horizon + 0.015 * t.stored.shape[1]
 
 
+@pytest.mark.slow
 def test_cli_info_and_errors(tmp_path):
     r = run("info")
     assert r.returncode == 0 and "float64" in r.stdout and "PoCL" in r.stdout

@@ -152,6 +152,7 @@ def run(*args):
     return subprocess.run([sys.executable, "-m", "brdfcl.app.cli", *args], capture_output=True, text=True)
 
 
+@pytest.mark.slow
 def test_cli(tmp_path, krylon):
     out = tmp_path / "out"
     r = run("synth", "--like", krylon.path, "--out", str(out), "--formats", "brdf",

@@ -87,6 +87,7 @@ def test_the_registry():
         Job("render", Path("."))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", WRITERS)
 def test_every_writer_writes_its_files_into_the_output_only(name, material, tmp_path):
     writer = IMPLEMENTED_WRITERS[name]
