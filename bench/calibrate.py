@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""The calibration study of issue 16, with its two checks; results in bench/results/calibration/.
+"""The calibration study of the diffraction tests, with its two checks; results in bench/results/calibration/.
 
     python bench/calibrate.py                  # the study (brdfcl.app.calibrate.study), resumable
     python bench/calibrate.py --summary-only   # summary, figures and table again from cases.csv

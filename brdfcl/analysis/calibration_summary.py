@@ -17,7 +17,8 @@ from brdfcl.analysis.analyze import Rule
 FP_TARGET = 0.05
 
 LEGACY = Rule(gradient_score=0.5, min_cells=30, wavelength_decisive=1.5, lobe_gain=0.0, gradient_required=False)
-"""The rule before the calibration (issue 16: 0.5 gradient score, 1.5 wavelength ratio, 2% per parameter)."""
+"""The rule before the calibration (0.5 gradient score, 1.5 wavelength ratio, 2% per parameter), which
+calibration.md compares with the calibrated one."""
 NUMERIC = ("share", "grad_score", "wl_ratio", "lobe_gain", "noise", "missing", "rmse_full", "rmse_no_diffraction")
 
 

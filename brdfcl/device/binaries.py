@@ -2,7 +2,7 @@
 (``programs/*.bin``) so that the next process loads them instead of building from source.
 
 A kept binary spares the runtime's own cache lookup, which preprocesses the whole source first
-(PoCL: 0.35-0.9 s a program).  A binary is keyed by everything that could make it wrong
+(for PoCL, a large part of a second a program).  A binary is keyed by everything that could make it wrong
 (source, build options, device, driver, platform); one that does not load is removed, and only
 the newest KEEP_BINARIES are kept.
 """
@@ -33,8 +33,7 @@ def binary_path(device, source: str, attempt: int = 0) -> Path:
 
 def load_binary(ctx, device, source: str, attempt: int = 0):
     """(program, {name: kernel}) from the binary a successful build left (`keep_binary`), None when
-    there is none or it does not load (then removed).  A cached build spares the runtime's own
-    cache lookup, which preprocesses the whole source first (PoCL: 0.35-0.9 s a program)."""
+    there is none or it does not load (then removed), built with the same options as from source."""
     path = binary_path(device, source, attempt)
     try:
         binary = path.read_bytes()

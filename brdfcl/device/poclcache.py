@@ -42,7 +42,7 @@ def _dirs(path: str) -> list:
 def cache_files(root: Path) -> list:
     """(file, its entry folder) as strings for the program bitcode (``*/*/*.bc``) and the kernel
     libraries (``*/*/*/*/*.so``, the entry three levels up) of a PoCL cache (a walk of plain
-    strings: a cache of thousands of entries took pathlib's glob a second)."""
+    strings: pathlib's glob is slow on a cache of thousands of entries)."""
     out: list = []
     for a in _dirs(os.path.abspath(root)):
         for entry in _dirs(a.path):
@@ -89,7 +89,8 @@ def repair_pocl_cache(platform, log=None) -> list:
     """Remove cache entries with an incomplete file, or with a file that no longer matches its
     fingerprint (PoCL rebuilds them); once per process and cache.  A file found sound is
     remembered by its size and times, so a run reads only the files new or changed since the last
-    (a cache of thousands of entries cost every start a second).  Returns the removed entry folders."""
+    (reading every file of a cache of thousands of entries would slow every start).  Returns the
+    removed entry folders."""
     root = pocl_cache_dir(platform)
     if root is None or root in _REPAIRED or not root.is_dir():
         return []
