@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from brdfcl._cache import cache_dir
 from brdfcl.analysis import nbrdf, power
 from brdfcl.analysis.analyze import RULE, analyze_material, margins_of
 from brdfcl.analysis.calibration import QUICK, Compared, Plan, analyse_cases, measured_share, synthesize
@@ -35,7 +36,7 @@ from brdfcl.model.compose import Model
 
 HERE = Path(__file__).resolve().parent
 OUT = HERE / "results" / "calibration"
-PROXY_DIR = Path(os.environ.get("BRDFCL_CACHE", Path.home() / ".cache" / "brdfcl")) / "proxy-all"
+PROXY_DIR = cache_dir() / "proxy-all"
 BASELINE = Path(os.environ.get("BRDFCL_BASELINE", "/work/cmp/before/analyze/analysis.csv"))
 
 # MERL material classes, for reading the proxy table only (no threshold is chosen on them)
