@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Which reflection-lobe forms a default would need (issue 15): candidate forms of the three-lobe
+"""Which reflection-lobe forms a default would need: candidate forms of the three-lobe
 model fitted to every proxy material, each material's form chosen by the lobe comparison's
 penalised error (brdfcl.optim.selection), and the chosen fits scored against the published SGD
 and ABC fits (bench/compare_published.py, same cells and metric).

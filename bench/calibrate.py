@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""The calibration study of issue 16, with its two checks; results in bench/results/calibration/.
+"""The calibration study of the diffraction tests, with its two checks; results in bench/results/calibration/.
 
     python bench/calibrate.py                  # the study (brdfcl.app.calibrate.study), resumable
     python bench/calibrate.py --summary-only   # summary, figures and table again from cases.csv
@@ -23,26 +23,20 @@ from pathlib import Path
 
 import numpy as np
 
+from brdfcl._cache import cache_dir
 from brdfcl.analysis import nbrdf, power
 from brdfcl.analysis.analyze import RULE, analyze_material, margins_of
-from brdfcl.analysis.calibration import Compared, Plan, analyse_cases, measured_share, synthesize
-from brdfcl.app.calibrate import (
-    DEFAULT_EPOCHS,
-    LEGACY,
-    QUICK,
-    QUICK_EPOCHS,
-    _num,
-    _read_rows,
-    rule_text,
-    study,
-    summarise,
-)
+from brdfcl.analysis.calibration import QUICK, Compared, Plan, analyse_cases, measured_share, synthesize
+from brdfcl.analysis.calibration_store import read_rows
+from brdfcl.analysis.calibration_study import DEFAULT_EPOCHS, QUICK_EPOCHS
+from brdfcl.analysis.calibration_summary import LEGACY, numeric_rows, rule_text
+from brdfcl.app.calibrate import study, summarise
 from brdfcl.data.merl import read_merl
 from brdfcl.model.compose import Model
 
 HERE = Path(__file__).resolve().parent
 OUT = HERE / "results" / "calibration"
-PROXY_DIR = Path(os.environ.get("BRDFCL_CACHE", Path.home() / ".cache" / "brdfcl")) / "proxy-all"
+PROXY_DIR = cache_dir() / "proxy-all"
 BASELINE = Path(os.environ.get("BRDFCL_BASELINE", "/work/cmp/before/analyze/analysis.csv"))
 
 # MERL material classes, for reading the proxy table only (no threshold is chosen on them)
@@ -113,7 +107,7 @@ def epochs_check(out, epochs=(10, 20, 30, 100)):
 def epochs_markdown(out):
     """epochs.md from epochs.csv: each case's statistics per table, and detections at each test's
     calibrated threshold (cases.csv) and under the code's rule."""
-    rows = _num(_read_rows(out / "epochs.csv"))
+    rows = numeric_rows(read_rows(out / "epochs.csv"))
     info = json.loads((out / "epochs.json").read_text())
     epochs = info["epochs"]
     names = list(dict.fromkeys(r["case"] for r in rows))
@@ -131,9 +125,9 @@ def epochs_markdown(out):
                 loss = float(r["train_loss"]) if r.get("train_loss") not in ("", None) else float("nan")
                 L.append(f"| {name} | {r['table']} | {_fmt(loss, '.4g')} | {_fmt(r['grad_score'])} "
                          f"({r['grad_cells']}) | {_fmt(r['wl_ratio'])} | {_fmt(r['lobe_gain'], '+.3f')} | {v} |")
-    cal_rows = _read_rows(out / "cases.csv")
+    cal_rows = read_rows(out / "cases.csv")
     if cal_rows:
-        thr = {t: power.test_threshold(_num(cal_rows), t) for t in power.TESTS}
+        thr = {t: power.test_threshold(numeric_rows(cal_rows), t) for t in power.TESTS}
         L += ["", "Detections of the diffraction cases and false positives of the others, at each test's "
               "threshold of calibration.md and under the code's rule:", "",
               "| table | gradient | wavelength | lobe | verdict | mean abs. change of the gradient score "
@@ -214,7 +208,7 @@ def why(r, rule, name):
 def proxies_markdown(out, small=0.05):
     """proxies.md from proxies.csv: the table class by class, the verdicts that change and why, and
     how many verdicts hang on a small margin."""
-    rows = _read_rows(out / "proxies.csv")
+    rows = read_rows(out / "proxies.csv")
     for r in rows:
         for k in ("grad_score", "wl_ratio", "lobe_gain", "margin_gradient", "margin_wavelength", "margin_lobe",
                   "fitted_share"):
@@ -293,7 +287,7 @@ def main(argv=None):
         return proxies_markdown(out)
     epochs = args.epochs or (QUICK_EPOCHS if args.quick else DEFAULT_EPOCHS)
     if args.summary_only:
-        summarise(out, _read_rows(out / "cases.csv"), epochs=epochs, log=log)
+        summarise(out, read_rows(out / "cases.csv"), epochs=epochs, log=log)
         return 0
     study(out, QUICK if args.quick else Plan(), epochs=epochs, log=log)
     return 0

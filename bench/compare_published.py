@@ -1,4 +1,4 @@
-"""brdfcl's fits against the published fits of the field (issue 15), side by side on the same tables.
+"""brdfcl's fits against the published fits of the field, side by side on the same tables.
 
 Every material of the set is fitted by brdfcl (one batch per model, default options, the whole
 fit timed), and every fit, brdfcl's and the published ones of `published.py` (SGD, Bagher et al.
@@ -140,7 +140,7 @@ def report(out: Path) -> str:
              "microfacet and ABC smooth surface (Löw et al. 2012, E2 fits), parameters from BBM's fits/ "
              "(bench/published/, each file's header gives the source); they were fitted to measured MERL, not to "
              "these tables. Ratio: brdfcl's rmse_log over the published one's, per material.", "",
-             "Against the better of the SGD and ABC microfacet fits (the two models of issue 15):", "",
+             "Against the better of the SGD and ABC microfacet fits (the default is measured against these two):", "",
              head, "|---|---|---|---|---|"]
     lines += _summary(specs, scores, seconds, ("sgd_bagher2012", "abc_low2012_microfacet_e2"))
     for s, chosen in run.get("models", {}).items():

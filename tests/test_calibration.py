@@ -1,4 +1,4 @@
-"""The calibration of the diffraction tests (issue 16): synthetic cases, the NBRDF round trip, the
+"""The calibration of the diffraction tests: synthetic cases, the NBRDF round trip, the
 power and threshold arithmetic, and the verdict rule with its margins.  A few tiny cases only."""
 import importlib.util
 import os

@@ -1,4 +1,4 @@
-"""Heavy-tailed reflection lobes (issue 15): GTR (ndf/gtr.py), ABC (ndf/abc.py) and their Smith
+"""Heavy-tailed reflection lobes: GTR (ndf/gtr.py), ABC (ndf/abc.py) and their Smith
 shadowing (shadowing/smith_gtr.py, smith_abc.py).  Their Jacobians and kernels are checked with every
 other term by tests/test_every_term.py; here: GTR at gamma = 2 is GGX, both normalisations by
 quadrature across the parameter box, reciprocity of a full lobe, the weak white furnace of the

@@ -85,8 +85,8 @@ __kernel void run_{name}(__global const float *x, __global float *y)
 """ for name in im.NAMES)
     import pyopencl as cl
 
+    from brdfcl.device.build import BUILD_OPTIONS
     from brdfcl.device.platforms import all_devices
-    from brdfcl.device.program import BUILD_OPTIONS
     ctx = cl.Context([all_devices()[int(device)][1]])
     queue = cl.CommandQueue(ctx)
     prg = cl.Program(ctx, src).build(options=BUILD_OPTIONS)         # as the kernels are built

@@ -170,7 +170,7 @@ class CountThreads(Evaluate):
                                           (["LD_LBFGS", "GN_CRS2_LM"], "threads")])
 def test_auto_driver_threads_only_for_random_algorithms(algos, driver):
     """``auto`` runs deterministic algorithms on greenlets in the caller's thread (no thread per
-    optimiser: issue 18's host time) and any batch with a random one on threads."""
+    optimiser: threads cost host time per evaluation) and any batch with a random one on threads."""
     fgs, _, x0s = case(len(algos))
     ev = CountThreads(fgs)
     before = threading.active_count()

@@ -15,8 +15,9 @@ import pytest
 from brdfcl.data.merl import read_merl
 from brdfcl.device import selftest, width
 from brdfcl.device.engine import Engine
+from brdfcl.device.errors import ProgramError
 from brdfcl.device.platforms import all_devices, selector_of
-from brdfcl.device.program import ProgramError, sound_bitcode, sound_elf
+from brdfcl.device.soundness import sound_bitcode, sound_elf
 from brdfcl.optim.fit import FitOptions, fit_tables, select_cells
 from tests.runtimes import building, device_params, is_cpu, is_pocl
 
@@ -134,21 +135,21 @@ def test_sound_file_checks(tmp_path):
 def test_the_cache_check_reads_only_new_or_changed_files(tmp_path, monkeypatch):
     """A file found sound is remembered by size and time: the next run does not read it again,
     a changed one is read, a broken one removed with its entry."""
-    from brdfcl.device import program
+    from brdfcl.device import poclcache
     monkeypatch.setenv("BRDFCL_CACHE_DIR", str(tmp_path / "brdfcl"))
     root = tmp_path / "pocl"
-    monkeypatch.setattr(program, "pocl_cache_dir", lambda platform: root)
+    monkeypatch.setattr(poclcache, "pocl_cache_dir", lambda platform: root)
     lib = open(__import__("glob").glob(os.path.dirname(np.__file__) + "/**/*.so", recursive=True)[0], "rb").read()
     for e in ("e1", "e2"):
         (root / "ab" / e / "kern" / "wg").mkdir(parents=True)
         (root / "ab" / e / "kern" / "wg" / "k.so").write_bytes(lib)
     reads = []
-    real = program._sound
-    monkeypatch.setattr(program, "_sound", lambda p: reads.append(p) or real(p))
+    real = poclcache.sound
+    monkeypatch.setattr(poclcache, "sound", lambda p: reads.append(p) or real(p))
 
     def repair():
-        program._REPAIRED.discard(root)
-        return program.repair_pocl_cache(None)
+        poclcache._REPAIRED.discard(root)
+        return poclcache.repair_pocl_cache(None)
     assert repair() == [] and len(reads) == 2
     assert repair() == [] and len(reads) == 2                       # nothing read again
     e1, e2 = (root / "ab" / e / "kern" / "wg" / "k.so" for e in ("e1", "e2"))
@@ -224,19 +225,19 @@ def test_damage_inside_a_cache_file_is_seen_by_its_fingerprint(tmp_path, device)
 
 def test_a_run_that_died_building_moves_the_program_to_a_new_cache_key(tmp_path, monkeypatch):
     """PoCL can abort the whole process while building; the next run sees the dead run's marker."""
-    from brdfcl.device import program
+    from brdfcl.device import crashguard
     monkeypatch.setenv("BRDFCL_CACHE_DIR", str(tmp_path))
     dev = type("Dev", (), {"name": "cpu", "driver_version": "1"})()
     dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True)
-    with program.crash_guard("src", dev) as attempt:
+    with crashguard.crash_guard("src", dev) as attempt:
         assert attempt == 0
         marker = next((tmp_path / "building").iterdir())
         marker.rename(marker.with_suffix("." + dead.stdout.strip()))     # as if that run had died here
     lines = []
-    with program.crash_guard("src", dev, log=lines.append) as attempt:
+    with crashguard.crash_guard("src", dev, log=lines.append) as attempt:
         assert attempt == 1
     assert len(lines) == 1 and "a run died building or testing this program on cpu" in lines[0]
-    with program.crash_guard("src", dev, log=lines.append) as attempt:
+    with crashguard.crash_guard("src", dev, log=lines.append) as attempt:
         assert attempt == 1                                           # kept for good
     assert len(lines) == 1
 

@@ -1,11 +1,11 @@
-"""Program binaries kept in brdfcl's cache (brdfcl.device.program): a program that passed its
+"""Program binaries kept in brdfcl's cache (brdfcl.device.binaries): a program that passed its
 self-test is loaded from its binary by the next process, passes the same self-test, and a binary
 that does not load is removed and the program built from source again."""
 import pytest
 
 from brdfcl.device import selftest
+from brdfcl.device.binaries import binary_path, load_binary
 from brdfcl.device.engine import Engine
-from brdfcl.device.program import binary_path, load_binary
 
 SPEC = "diffuse+ggx:smith:schlick"
 

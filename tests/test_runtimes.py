@@ -177,7 +177,7 @@ def test_no_device_that_builds_is_one_line_with_what_to_install(tmp_path, demo_d
 def test_a_program_that_fails_to_build_is_one_line_naming_model_device_and_log(monkeypatch, tmp_path):
     """However long the compiler's error, the line keeps the model, the device and the log's path."""
     from brdfcl.device import engine
-    from brdfcl.device.program import ProgramError
+    from brdfcl.device.errors import ProgramError
     short = tempfile.mkdtemp(prefix="brdfcl-cache-")         # about as long as ~/.cache/brdfcl
     monkeypatch.setenv("BRDFCL_CACHE_DIR", short)
     broken = "#error this kernel is broken " + "because " * 40 + "\n"

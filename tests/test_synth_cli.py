@@ -47,3 +47,14 @@ def test_cli_info_and_errors(tmp_path):
     assert r.stderr.count("\n") == 1 and "unknown demo material" in r.stderr and "synth-mirror" in r.stderr
     r = run("info", "--device", "no-such-device")
     assert r.returncode == 2 and "no OpenCL device matches" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_demo_database_lives_in_brdfcls_cache(tmp_path, monkeypatch):
+    """One variable moves all of brdfcl's cache, the demo database included: BRDFCL_CACHE_DIR."""
+    from brdfcl.model import synth
+    written = []
+    monkeypatch.setattr(synth, "write_synth", lambda out, log=None: written.append(out))
+    monkeypatch.setenv("BRDFCL_CACHE_DIR", str(tmp_path / "cache"))
+    monkeypatch.setenv("BRDFCL_CACHE", str(tmp_path / "old"))           # no longer read
+    assert synth.demo_dir() == tmp_path / "cache" / "demo"
+    assert written == [tmp_path / "cache" / "demo"]

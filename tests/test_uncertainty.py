@@ -1,4 +1,4 @@
-"""Standard errors, directional albedo and flags of a fit (brdfcl.optim.uncertainty, issue 17).
+"""Standard errors, directional albedo and flags of a fit (brdfcl.optim.uncertainty).
 
 The standard errors are checked against a bootstrap over cells: RESAMPLES multinomial resamples of
 the fitted cells, each refitted from the optimum by Levenberg-Marquardt with the counts as weights.

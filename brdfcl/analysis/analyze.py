@@ -9,19 +9,18 @@ is ``diffraction`` only when the lobe comparison keeps the diffraction lobe, the
 decides and agrees, and the wavelength check does not contradict it; ``none`` otherwise (``Rule``).
 A material with verdict ``none`` gets its final fit without the diffraction lobe.
 
-The thresholds (``RULE``) were chosen on synthetic materials of known diffraction share, measured
-with MERL-like noise and missing cells, on the tables themselves and after the NBRDF round trip of
-the MERL-proxy (brdfcl.analysis.calibration, ``brdfcl calibrate``, bench/results/calibration/):
-the lobe comparison keeps the diffraction lobe (lobe gain > 0), at least 30 gradient-test cells
-decide and at least 20% of them side with diffraction, and the wavelength ratio stays below 5.
-On the 78 no-diffraction cases it gives 0 false positives on the tables and 1 after the round
-trip; it detects a halo carrying half the wide-angle energy 90% of the time (0.49 on the tables,
-0.62 after the round trip).  The legacy rule (score >= 0.5 where the test decides, ratio < 1.5)
-gave 2 and 1 false positives and needed a share of 0.69 (never 90% after the round trip): a
-score of 0.5 asks for more than moderate halos give, a ratio of 1.5 vetoed real halos, and an
-undecided gradient test let layered (two-lobe) materials through on the lobe comparison alone.
-The rule is only as good as the no-diffraction classes it was calibrated on (see the note there).
-Each verdict carries its margins (``MaterialAnalysis.margins``).
+The thresholds (``RULE``) are chosen by the calibration (``brdfcl calibrate``,
+brdfcl.analysis.calibration) on synthetic materials of known diffraction share, measured with
+MERL-like noise and missing cells, on the tables themselves and after the NBRDF round trip of the
+MERL-proxy: the rule of highest detection with at most 5% false positives on either kind of table
+(bench/results/calibration/calibration.md has its rates).  The lobe comparison must keep the
+diffraction lobe (lobe gain > 0); at least 30 gradient-test cells must decide and at least 20% of
+them side with diffraction (moderate halos give no higher score), an undecided gradient test
+giving ``none`` (the lobe comparison alone lets layered, two-lobe, materials through); and the
+wavelength check vetoes only at a ratio of 5 (real halos under noise reach ratios above 1.5).
+The rule is only as good as the no-diffraction classes it was calibrated on
+(bench/results/calibration/NOTE.md).  Each verdict carries its margins
+(``MaterialAnalysis.margins``).
 
 The fits give the specular peak to Cook-Torrance (brdfcl.optim.peak_order, the talk's model);
 the full model is also fitted without that constraint (``full_free``) so that the table
@@ -41,12 +40,12 @@ from brdfcl.model.lobes.cells import Cells
 from brdfcl.optim.peak_order import peak_cell
 from brdfcl.optim.selection import select
 
-# The verdict's thresholds, calibrated (issue 16; bench/results/calibration/calibration.md)
+# The verdict's thresholds, calibrated (bench/results/calibration/calibration.md)
 MIN_DECIDABLE = 30            # gradient test cells below which it is inconclusive
-GRADIENT_SCORE = 0.2          # gradient test: share of decidable cells closer to grad f (legacy 0.5)
-GRADIENT_REQUIRED = True      # an inconclusive gradient test gives none (legacy: no objection)
+GRADIENT_SCORE = 0.2          # gradient test: share of decidable cells closer to grad f
+GRADIENT_REQUIRED = True      # an inconclusive gradient test gives none
 LOBE_GAIN = 0.0               # lobe comparison: ln(penalised error without / with diffraction)
-WAVELENGTH_VETO = 5.0         # wavelength ratio at or above which the check contradicts (legacy: DECISIVE)
+WAVELENGTH_VETO = 5.0         # wavelength ratio at or above which the check contradicts
 COMPARED = ("full", "no_diffraction", "no_ct")
 TESTS = ("gradient", "wavelength", "lobe")
 
@@ -58,9 +57,9 @@ class Rule:
     the best with it; 0: brdfcl.optim.selection's choice), and neither the gradient test (where at
     least ``min_cells`` cells decide, score >= ``gradient_score``; with ``gradient_required`` it must
     decide) nor the wavelength check (ratio < ``wavelength_decisive``; with ``wavelength_required``
-    it must decide) contradicts it where it can decide.  The defaults are the calibrated rule; the
-    legacy one was ``Rule(0.5, 30, 1.5, 0.0, False)``; scattered samples are judged by
-    brdfcl.analysis.samples.SAMPLE_RULE.
+    it must decide) contradicts it where it can decide.  The defaults are the calibrated rule (the
+    calibration compares it with the rule before it, brdfcl.analysis.calibration_summary.LEGACY);
+    scattered samples are judged by brdfcl.analysis.samples.SAMPLE_RULE.
 
     ``margins`` gives each test's signed distance to its threshold, positive on the side of
     diffraction: gradient ``score - gradient_score`` (NaN where too few cells decide), wavelength

@@ -14,10 +14,9 @@ scaling removes (MERL-proxy metals sit there, ratio ~ 1).  The check therefore o
 contradicts diffraction when it is decisive, ``ratio >= DECISIVE``.
 
 ``DECISIVE`` labels the check's own answer (``consistent``).  The verdict vetoes only at
-brdfcl.analysis.analyze.WAVELENGTH_VETO (5, calibrated): on synthetic halos with MERL-like noise
-the ratio lies between 1.5 and 5 for a quarter of the materials whose halo carries half of the
-wide-angle energy (bench/results/calibration/calibration.md); with the verdict's other thresholds
-as calibrated, a veto at 1.5 removed 13 of its 65 detections there and no false positive.
+brdfcl.analysis.analyze.WAVELENGTH_VETO (5, calibrated): under MERL-like noise, real halos often
+give ratios between 1.5 and 5, so a veto at DECISIVE would remove detections without removing
+false positives (bench/results/calibration/calibration.md).
 """
 from __future__ import annotations
 

@@ -128,7 +128,7 @@ def main(argv=None) -> int:
     import pyopencl as cl
 
     from brdfcl.device import buildlog
-    from brdfcl.device.program import repair_pocl_cache
+    from brdfcl.device.poclcache import repair_pocl_cache
     pi, di = (int(s) for s in a.device.split(":"))
     platform = cl.get_platforms()[pi]
     device = platform.get_devices()[di]

@@ -9,8 +9,9 @@ import json
 import sys
 
 from brdfcl.device import selftest
+from brdfcl.device.build import ABI_WARNING, build_log
 from brdfcl.device.engine import Engine
-from brdfcl.device.program import ABI_WARNING, ProgramError, build_log
+from brdfcl.device.errors import ProgramError
 from brdfcl.model.compose import DEFAULT_MODEL
 
 

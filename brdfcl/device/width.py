@@ -28,8 +28,9 @@ import pyopencl as cl
 from brdfcl._cache import cache_dir, locked, read_json, update_json
 from brdfcl._version import __version__
 from brdfcl.device import buildlog, cpu
+from brdfcl.device.build import ABI_WARNING
+from brdfcl.device.errors import ProgramError
 from brdfcl.device.platforms import is_cpu, selector_of
-from brdfcl.device.program import ABI_WARNING, ProgramError
 from brdfcl.kernels.codegen import kernel_sources_hash
 
 ENV = "BRDFCL_VECTOR_WIDTH"

@@ -44,8 +44,8 @@ def kernel_sources_hash() -> str:
     that writes terms and lobes as C (this folder's and brdfcl.model's modules), the module of every
     registered term (a user's own included), SymPy's version, and the metrics' C expressions.
     Decisions cached about compiled programs (brdfcl.device.width) are stale once any of them
-    changes.  Hashing the inputs, not the generated C, keeps SymPy out of every start-up (2.3 s
-    for the 19 terms)."""
+    changes.  Hashing the inputs, not the generated C, keeps SymPy's generation of every term
+    (seconds) out of every start-up."""
     h = hashlib.sha1(sp.__version__.encode())
     for p in sorted(kernel_dir().rglob("*")):
         if p.suffix in (".cl", ".mako"):

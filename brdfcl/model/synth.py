@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from brdfcl._cache import cache_dir
 from brdfcl.data.cornell import write_cornell
 from brdfcl.data.csvsamples import write_csv
 from brdfcl.data.errors import DataError
@@ -119,9 +120,9 @@ def _fingerprint():
 
 
 def demo_dir() -> Path:
-    """The demo database, generated into the user's cache (35 MB per material) on first use and
-    again whenever the demo definition changes."""
-    base = Path(os.environ.get("BRDFCL_CACHE", Path.home() / ".cache" / "brdfcl")) / "demo"
+    """The demo database, generated into brdfcl's cache (``demo/`` in brdfcl._cache.cache_dir,
+    35 MB per material) on first use and again whenever the demo definition changes."""
+    base = cache_dir() / "demo"
     try:
         current = json.loads((base / "truth.json").read_text()).get("definition") == _fingerprint()
     except (OSError, ValueError):

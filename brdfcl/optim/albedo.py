@@ -1,4 +1,4 @@
-"""Directional albedo of a fitted model, attached to each fit to flag energy gain (issue 17).
+"""Directional albedo of a fitted model, attached to each fit to flag energy gain.
 
 ``a(theta_i) = int f(wi, wo) cos theta_o dwo`` per channel, integrated over the half vector:
 ``wo = 2 (wi.h) h - wi``, ``dwo = 4 (wi.h) dwh``.  Every lobe of the model family (diffuse,

@@ -1,5 +1,5 @@
 """What a finished fit is worth, the pipeline's last stage: its reported errors, the parameters at
-a bound, and (issue 17) standard errors (brdfcl.optim.uncertainty), directional albedo
+a bound, and standard errors (brdfcl.optim.uncertainty), directional albedo
 (brdfcl.optim.albedo) and flags for values a user should not trust, in NAME.json's form."""
 from __future__ import annotations
 

@@ -10,9 +10,9 @@ parameters is kept only where it earns them, and one with fewer (one refractive 
 an F0 per channel) wins ties.  A form that can start from another's fits (``STARTS``: GTR at
 gamma = 2 is GGX; ABC near its peak is a GTR) is refined from them, without a global search.
 
-``DEFAULT_FORMS`` is what ``brdfcl fit-all`` chooses among when no model is given: on the 80
-development proxies it is no worse than the published SGD and ABC fits on any, median 0.70 of the
-better of them (bench/bench_forms.py, bench/results/forms_published.md).
+``DEFAULT_FORMS`` is what ``brdfcl fit-all`` chooses among when no model is given: the forms a
+default needs so that no development proxy is fitted worse than by the published SGD and ABC fits
+(bench/bench_forms.py; the comparison is bench/results/forms_published.md).
 """
 from __future__ import annotations
 

@@ -11,10 +11,10 @@ Two ways to suspend an optimiser (``run_lockstep``'s ``driver``):
   switch back to the coordinator (a few microseconds).  Only for algorithms that draw no random
   numbers (`DETERMINISTIC`): nlopt's random state is per thread, and greenlets share one.
 * ``threads``: every optimiser in its own thread with its own random state (nlopt.srand of its
-  seed), waiting on its own event; the last to post wakes the coordinator, and only it.  Several
-  hundred threads handing over the GIL cost ~70 us of host time per evaluation (Xeon, 400
-  optimisers), against ~15 us on greenlets: the global search's host time was larger than its
-  kernels' (brdfcl issue 18).
+  seed), waiting on its own event; the last to post wakes the coordinator, and only it.  Hundreds
+  of threads handing over the GIL cost several times the host time per evaluation that greenlets
+  do, enough to outweigh the kernels of a global search: ``auto`` takes greenlets wherever the
+  algorithms allow.
 """
 from __future__ import annotations
 

@@ -49,7 +49,7 @@ class FitResult:
     history: list                    # [(seconds, stage, rmse in the fit metric)]
     bounds_hit: list
     stages: dict                     # seconds per stage (shared by the batch)
-    # issue 17 (brdfcl.optim.uncertainty), in NAME.json's form; None / empty when not assessed
+    # assessment (brdfcl.optim.assessment), in NAME.json's form; None / empty when not assessed
     uncertainty: dict | None = None  # {"std_error": {name: float|None}, "correlation": {...}, "method"}
     albedo: dict | None = None       # {"theta_i_deg": [...], "channels": [[one per channel] per angle]}
     flags: list = field(default_factory=list)   # one line per reason not to trust the fit

@@ -1,5 +1,5 @@
 """What a fit is worth: standard errors and correlations of its parameters, the directional albedo
-of the fitted model, and flags for values a user should not trust (issue 17).
+of the fitted model, and flags for values a user should not trust.
 
 Standard errors
 ---------------
@@ -14,11 +14,11 @@ cells).  So neither ``sigma^2 H^-1`` (weights as inverse variances) nor the homo
     cov = H^-1 M H^-1,   H = J^T W J,   M = sum_cells w^2 g_c g_c^T      (HC0, "robust")
 
 which holds whatever the noise level of each cell, with cells (their three channels together)
-as the independent units: exactly what a bootstrap over cells measures.  Measured on synthetic
-diffuse+GGX materials with 2% multiplicative noise (tests/test_uncertainty.py has the figures),
-the sandwich's standard errors are 0.83-1.17 times the spread of bootstrap refits per parameter,
-while the homoscedastic form gives 0.07-0.13 times it for the specular parameters (0.7-1.4 for
-the diffuse ones) and ``sigma^2 H^-1`` 0.5-2.4 times.
+as the independent units: exactly what a bootstrap over cells measures.  On synthetic
+diffuse+GGX materials with multiplicative noise the sandwich's standard errors match the spread of
+bootstrap refits per parameter, where the homoscedastic form underestimates the specular
+parameters' by an order of magnitude and ``sigma^2 H^-1`` is off by up to a factor of two either
+way (tests/test_uncertainty.py checks the sandwich against the bootstrap and gives the figures).
 
 ``H`` comes from the kernels (``Engine.jtj``, full table, one launch for all materials finishing
 together), plus the Gauss-Newton Hessian of the peak-order penalty when the fit has one (it is a
@@ -26,8 +26,8 @@ constraint, not data, so it enters H and not M).  ``M`` needs the residual of ev
 the kernels only return summed, so it is computed with the float64 reference on a systematic
 subsample of the fitted cells (every ``stride``-th in table order, at most ``MEAT_CELLS`` cells,
 scaled by the stride): on the full table (910k cells) every 46th, whose standard errors are
-within 6% of those of every cell for GGX lobes of alpha 0.1, 0.01 and 1e-3.  Measured cost: 3-5%
-of a fit (0.025 s per material on 2 cores).  Parameters at a bound are held (their rows and
+within 6% of those of every cell for GGX lobes of alpha 0.1 to 1e-3, at a small part of a fit's
+cost.  Parameters at a bound are held (their rows and
 columns are left out: standard errors conditional on them) and get no standard error (None, JSON
 null), as do fixed parameters.  All values are in natural units (not the optimiser's log space); for a
 log-flagged parameter ``std_error / value`` is the standard error of its logarithm.  A residual

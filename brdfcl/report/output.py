@@ -95,7 +95,7 @@ def result_document(res: Any, model: Model, extra: dict | None = None, options: 
            "loss": res.loss, "seconds": res.seconds, "evaluations": res.nfev, "stages": res.stages,
            "history": [{"seconds": t, "stage": s, "rmse": e} for t, s, e in res.history],
            "wavelengths_um": list(model.lambdas), "brdfcl_version": __version__}
-    # issue 17 (brdfcl.optim.uncertainty): standard errors and correlation, directional albedo, flags
+    # the assessment (brdfcl.optim.assessment): standard errors and correlation, directional albedo, flags
     doc["uncertainty"] = getattr(res, "uncertainty", None)
     doc["albedo"] = getattr(res, "albedo", None)
     doc["flags"] = list(getattr(res, "flags", None) or [])

@@ -16,10 +16,10 @@ evaluated at those cells' bin centres: the model tabulated as a MERL table; ever
 every second theta_d and phi_d bin).  Both images thus see the same discretisation, and their
 difference is the model's, not the lookup's.  Near the horizon a bin's centre can lie far from
 the sample in cos theta, where a model's 1 / cos(theta) is large: such samples are left out and
-their weight spread over the pixel's others.  Against the exact rendering of a fit
-(sphere.render_model_sphere), measured on MERL-proxy fits at 64 px: median relative difference
-0.1-0.7 % (99th percentile 0.6-3 %) for rough and medium lobes, 6 % (19 %) for chrome, whose peak
-is narrower than the table's first theta_h bins.  The operator is computed once per machine
+their weight spread over the pixel's others.  The image stays close to the exact rendering of a
+fit (sphere.render_model_sphere; tests/test_view.py bounds the median relative difference): within
+a percent for rough and medium lobes, several percent for mirror-like ones such as chrome, whose
+peak is narrower than the table's first theta_h bins.  The operator is computed once per machine
 (brdfcl._cache.generated_arrays).
 """
 from __future__ import annotations

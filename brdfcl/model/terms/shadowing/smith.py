@@ -143,7 +143,8 @@ class SeriesLambda:
     cos theta (Lambda - base) at the Chebyshev nodes in x.
 
     For a distribution whose Lambda has no closed form, a fixed rule per cell costs a log and an exp
-    at each node, twice per cell and evaluation, and made those kernels five times GGX's.  The
+    at each node, twice per cell and evaluation, which would make those kernels several times
+    slower than GGX's.  The
     series moves the rule to the host: per evaluation (one parameter vector) the host evaluates the
     rule ``correction`` (HOST_NODES Gauss-Legendre nodes, float64, its derivatives from SymPy) at the
     series' SERIES_TERMS nodes in cos theta and interpolates, giving the coefficients c_k of x^k and
