@@ -7,8 +7,10 @@ make FitOptions, shared by fit-all and analyze, are brdfcl.app.arguments.  A com
 from __future__ import annotations
 
 import argparse
+import difflib
 import logging
 import os
+import re
 import sys
 
 from brdfcl._version import __version__
@@ -17,6 +19,83 @@ from brdfcl.app.arguments import UsageError, add_database_arguments, default_of,
 # fit_options and UsageError are this module's too (tests and scripts import them from here)
 __all__ = ["UsageError", "build_parser", "fit_options", "main"]
 MESSAGE_CHARS = 400                 # a longer error line is cut in its middle (--debug shows all)
+NUMBER = re.compile(r"^-\d+$|^-\d*\.\d+")     # a negative number is a value, not an option
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse whose usage errors are one line, ``PROG: error: PROBLEM (see PROG --help)``, exit
+    status 2 (the usage block only with --help), with a "did you mean" for a mistyped command,
+    option or choice.  ``add_subparsers`` makes the subcommands' parsers of this class too.
+
+    argparse reports the first problem it meets; an unknown option often causes the next (a
+    mistyped --out leaves --out missing), so an unknown option among the arguments is reported
+    before any other problem."""
+
+    def parse_known_args(self, args=None, namespace=None):
+        self._argv = list(sys.argv[1:] if args is None else args)      # for error(): what was given
+        return super().parse_known_args(args, namespace)
+
+    def parse_args(self, args=None, namespace=None):
+        parsed, extra = self.parse_known_args(args, namespace)
+        unknown = self._unknown(self._argv)
+        if unknown:                                 # given before the command: this parser's own
+            self.error(unknown)
+        sub = self._command_parser(parsed)
+        if extra:                                   # a subcommand's parser leaves them to this one
+            (sub or self).error((sub or self)._unknown(extra) or f"unrecognized arguments: {' '.join(extra)}")
+        if sub is None and self._commands() is not None:
+            names = list(self._commands().choices)
+            self.error(f"give a command: {', '.join(names[:-1])} or {names[-1]}")
+        return parsed
+
+    def error(self, message):
+        unknown = self._unknown(getattr(self, "_argv", []))
+        text = unknown or message
+        hint = "" if "did you mean" in text else f" (see {self.prog} --help)"
+        self.exit(2, f"{self.prog}: error: {text}{hint}\n")
+
+    def _check_value(self, action, value):
+        if action.choices is None or value in action.choices:
+            return
+        choices = [str(c) for c in action.choices]
+        close = difflib.get_close_matches(str(value), choices, n=1)
+        if isinstance(action, argparse._SubParsersAction):
+            raise argparse.ArgumentError(None, f"invalid choice '{value}'" + (
+                f" (did you mean {close[0]}?)" if close else f"; the commands are {', '.join(choices)}"))
+        raise argparse.ArgumentError(action, f"invalid choice '{value}'" + (
+            f" (did you mean {close[0]}?)" if close else f"; choose from {', '.join(choices)}"))
+
+    def _commands(self):
+        return next((a for a in self._actions if isinstance(a, argparse._SubParsersAction)), None)
+
+    def _command_parser(self, parsed):
+        commands = self._commands()
+        name = getattr(parsed, commands.dest, None) if commands is not None else None
+        return commands.choices[name] if name is not None else None
+
+    def _unknown(self, tokens) -> str:
+        """'unrecognized argument --ouut (did you mean --out?)' for the options among ``tokens``
+        that this parser does not know (a unique prefix of one it knows is known, as argparse
+        takes it), or ''.  A parser of commands reads only the tokens before the command."""
+        bad = []
+        for tok in tokens:
+            if tok == "--":
+                break
+            if not tok.startswith("-") or tok == "-" or NUMBER.match(tok):
+                if self._commands() is not None:
+                    break
+                continue
+            flag = tok.split("=", 1)[0]
+            if not any(s.startswith(flag) for s in self._option_string_actions):
+                bad.append(flag)
+        if not bad:
+            return ""
+        longs = [s for s in self._option_string_actions if s.startswith("--")]
+        shown = []
+        for flag in bad:
+            close = difflib.get_close_matches(flag, longs, n=1)
+            shown.append(f"{flag} (did you mean {close[0]}?)" if close else flag)
+        return f"unrecognized argument{'s' * (len(bad) > 1)} {', '.join(shown)}"
 
 
 def cmd_info(args):
@@ -217,11 +296,11 @@ def build_parser():
     from brdfcl.app.run import fit_all
     from brdfcl.model.synth import write_spectral_synth, write_synth
     from brdfcl.optim.fit import FitOptions
-    ap = argparse.ArgumentParser(prog="brdfcl", description=__doc__)
+    ap = Parser(prog="brdfcl", description=__doc__)
     ap.add_argument("--version", action="version", version=f"brdfcl {__version__}")
     ap.add_argument("--debug", action="store_true", help="show tracebacks")
-    sub = ap.add_subparsers(dest="cmd", required=True)
-    common = argparse.ArgumentParser(add_help=False)
+    sub = ap.add_subparsers(dest="cmd", metavar="COMMAND")       # Parser.parse_args asks for one
+    common = Parser(add_help=False)
     common.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help="show tracebacks")
     add = sub.add_parser
     sub.add_parser = lambda *a, **kw: add(*a, parents=[common], **kw)

@@ -1,0 +1,66 @@
+"""What the command line prints to a user: one-line usage errors with a "did you mean", and help
+text that says what the commands do (checked against what they do)."""
+from __future__ import annotations
+
+import pytest
+
+from brdfcl.app import cli
+
+
+def usage_error(capsys, *argv) -> str:
+    """The one line a usage error prints (exit status 2, nothing on stdout, no usage block)."""
+    with pytest.raises(SystemExit) as e:
+        cli.main([str(a) for a in argv])
+    assert e.value.code == 2
+    out, err = capsys.readouterr()
+    assert out == "" and "usage:" not in err, err
+    lines = err.splitlines()
+    assert len(lines) == 1, err
+    return lines[0]
+
+
+@pytest.mark.parametrize("argv, line", [
+    ((), "brdfcl: error: give a command: info, synth, fit-all, calibrate, analyze, export, terms or params "
+         "(see brdfcl --help)"),
+    (("fit-all", "--demo"), "brdfcl fit-all: error: the following arguments are required: --out "
+                            "(see brdfcl fit-all --help)"),
+    (("fit-all", "--demo", "--out", "o", "--metric", "l3"),
+     "brdfcl fit-all: error: argument --metric: invalid choice 'l3'; choose from l2, log, cbrt "
+     "(see brdfcl fit-all --help)"),
+    (("fit-all", "--demo", "--out", "o", "--batch", "abc"),
+     "brdfcl fit-all: error: argument --batch: invalid int value: 'abc' (see brdfcl fit-all --help)"),
+    (("synth", "a", "b"), "brdfcl synth: error: unrecognized arguments: b (see brdfcl synth --help)"),
+    (("--bogus",), "brdfcl: error: unrecognized argument --bogus (see brdfcl --help)"),
+    (("xyz",), "brdfcl: error: invalid choice 'xyz'; the commands are info, synth, fit-all, calibrate, analyze, "
+               "export, terms, params (see brdfcl --help)"),
+])
+def test_usage_errors_are_one_line(capsys, argv, line):
+    assert usage_error(capsys, *argv) == line
+
+
+@pytest.mark.parametrize("argv, line", [
+    (("fit-al",), "brdfcl: error: invalid choice 'fit-al' (did you mean fit-all?)"),
+    (("anlyze", "--demo"), "brdfcl: error: invalid choice 'anlyze' (did you mean analyze?)"),
+    # the unknown option is what matters, not the --out it leaves missing
+    (("fit-all", "--demo", "--ouut", "o"), "brdfcl fit-all: error: unrecognized argument --ouut (did you mean --out?)"),
+    (("fit-all", "--demo", "--out", "o", "--qiet"),
+     "brdfcl fit-all: error: unrecognized argument --qiet (did you mean --quiet?)"),
+    (("analyze", "--demo", "--out", "o", "--no-figurs", "--no-reprt"),
+     "brdfcl analyze: error: unrecognized arguments --no-figurs (did you mean --no-figures?), "
+     "--no-reprt (did you mean --no-report?)"),
+    (("fit-all", "--demo", "--out", "o", "--metric", "lg"),
+     "brdfcl fit-all: error: argument --metric: invalid choice 'lg' (did you mean log?)"),
+])
+def test_did_you_mean(capsys, argv, line):
+    assert usage_error(capsys, *argv) == line
+
+
+def test_prefixes_and_negative_numbers_are_not_unknown():
+    args = cli.build_parser().parse_args(["fit-all", "--demo", "--ou", "o", "--seed", "-1", "--cutof", "70"])
+    assert (args.out, args.seed, args.cutoff) == ("o", -1, 70.0)
+
+
+def test_help_keeps_its_usage_block(capsys):
+    with pytest.raises(SystemExit) as e:
+        cli.main(["fit-all", "--help"])
+    assert e.value.code == 0 and capsys.readouterr().out.startswith("usage: brdfcl fit-all ")
