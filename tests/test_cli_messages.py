@@ -8,10 +8,13 @@ from brdfcl.app import cli
 
 
 def usage_error(capsys, *argv) -> str:
-    """The one line a usage error prints (exit status 2, nothing on stdout, no usage block)."""
-    with pytest.raises(SystemExit) as e:
-        cli.main([str(a) for a in argv])
-    assert e.value.code == 2
+    """The one line a usage error prints (exit status 2, nothing on stdout, no usage block), found
+    by the parser (SystemExit) or by the command (main's return value)."""
+    try:
+        code = cli.main([str(a) for a in argv])
+    except SystemExit as e:
+        code = e.code
+    assert code == 2
     out, err = capsys.readouterr()
     assert out == "" and "usage:" not in err, err
     lines = err.splitlines()
@@ -64,3 +67,20 @@ def test_help_keeps_its_usage_block(capsys):
     with pytest.raises(SystemExit) as e:
         cli.main(["fit-all", "--help"])
     assert e.value.code == 0 and capsys.readouterr().out.startswith("usage: brdfcl fit-all ")
+
+
+def test_database_or_demo(capsys, tmp_path):
+    assert usage_error(capsys, "fit-all", "--out", tmp_path / "o") == (
+        "brdfcl fit-all: error: give a database folder (of MERL .binary, Cornell .brdf or .csv files) or --demo "
+        "(see brdfcl fit-all --help)")
+    assert usage_error(capsys, "analyze", tmp_path, "--demo", "--out", tmp_path / "o") == (
+        f"brdfcl analyze: error: a database folder ({tmp_path}) and --demo: give one of them "
+        "(see brdfcl analyze --help)")
+    assert usage_error(capsys, "fit-all", tmp_path / "nope", "--out", tmp_path / "o") == (
+        f"brdfcl fit-all: error: {tmp_path / 'nope'}: no such folder or file (see brdfcl fit-all --help)")
+
+
+def test_unknown_demo_material(capsys, tmp_path):
+    line = usage_error(capsys, "synth", tmp_path, "--materials", "synth-fabrc")
+    assert line.startswith("brdfcl synth: error: unknown demo material synth-fabrc; valid: synth-")
+    assert line.endswith(" (did you mean synth-fabric?)")

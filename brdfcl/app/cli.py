@@ -155,16 +155,18 @@ def _program_check(index, real, vector_width):
 def cmd_synth(args):
     from brdfcl.model.synth import DEMO, SPECTRAL, write_spectral_synth, write_synth
     if args.out and args.out_flag and args.out != args.out_flag:
-        raise UsageError(f"two output folders ({args.out}, --out {args.out_flag}): give one")
+        raise UsageError(f"two output folders, {args.out} and --out {args.out_flag}: give one")
     out = args.out_flag or args.out
     if not out:
-        raise UsageError("give an output folder: brdfcl synth OUT (or --out OUT)")
+        raise UsageError("give an output folder: brdfcl synth OUT, or --out OUT")
     known, what = (SPECTRAL, "spectral") if args.like else (DEMO, "demo")
     mats = [m.strip() for m in args.materials.split(",") if m.strip()] if args.materials else None
     if mats:
         bad = [m for m in mats if m not in known]
         if bad:
-            raise UsageError(f"unknown {what} material(s) {', '.join(bad)}; valid: {', '.join(known)}")
+            close = difflib.get_close_matches(bad[0], known, n=1)
+            raise UsageError(f"unknown {what} material{'s' * (len(bad) > 1)} {', '.join(bad)}; valid: "
+                             f"{', '.join(known)}" + (f" (did you mean {close[0]}?)" if close else ""))
     if not args.like:
         if args.formats is not None:
             raise UsageError("--formats applies to spectral materials (with --like FILE) only")
@@ -184,8 +186,12 @@ def cmd_synth(args):
 def _database_job(args):
     """(source folder, FitOptions, log) shared by fit-all and analyze."""
     from brdfcl.model.synth import demo_dir
-    if args.demo == (args.database is not None):
-        raise UsageError("give a database folder or --demo (not both)")
+    if args.demo and args.database is not None:
+        raise UsageError(f"a database folder ({args.database}) and --demo: give one of them")
+    if not args.demo and args.database is None:
+        raise UsageError("give a database folder (of MERL .binary, Cornell .brdf or .csv files) or --demo")
+    if args.database is not None and not os.path.exists(args.database):
+        raise UsageError(f"{args.database}: no such folder or file")
     source = demo_dir() if args.demo else args.database
     from tqdm import tqdm
     # tqdm.write keeps stage messages from tearing the progress bar on a terminal
@@ -401,7 +407,12 @@ def main(argv=None):
         text = " ".join(f"{kind}{e}".split())
         if len(text) > MESSAGE_CHARS:       # keep both ends: what failed, and where more is said
             text = f"{text[:MESSAGE_CHARS // 2 - 12].rstrip()} [...] {text[-(MESSAGE_CHARS // 2 - 12):].lstrip()}"
-        print(f"brdfcl: error: {text}", file=sys.stderr)
+        if isinstance(e, UsageError):       # as argparse's usage errors (Parser.error)
+            prog = f"brdfcl {args.cmd}"
+            hint = "" if "did you mean" in text else f" (see {prog} --help)"
+            print(f"{prog}: error: {text}{hint}", file=sys.stderr)
+        else:
+            print(f"brdfcl: error: {text}", file=sys.stderr)
         return 2
 
 
