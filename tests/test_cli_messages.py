@@ -84,3 +84,64 @@ def test_unknown_demo_material(capsys, tmp_path):
     line = usage_error(capsys, "synth", tmp_path, "--materials", "synth-fabrc")
     assert line.startswith("brdfcl synth: error: unknown demo material synth-fabrc; valid: synth-")
     assert line.endswith(" (did you mean synth-fabric?)")
+
+
+# ---- help text --------------------------------------------------------------------------------
+
+COMMANDS = ("info", "synth", "fit-all", "calibrate", "analyze", "export", "terms", "params")
+
+
+def help_of(capsys, *argv) -> str:
+    with pytest.raises(SystemExit) as e:
+        cli.main([*argv, "--help"])
+    assert e.value.code == 0
+    return capsys.readouterr().out
+
+
+def test_top_help_is_for_users(capsys):
+    text = help_of(capsys)
+    flat = " ".join(text.split())
+    assert "brdfcl fits analytic BRDF models" in flat
+    for developer_words in ("cmd_", "``", "build_parser", "brdfcl.app", "FitOptions", "One function per command"):
+        assert developer_words not in text, developer_words
+    assert "\n  brdfcl fit-all merl/ --out out/merl " in text         # an example, kept as written
+    for cmd in COMMANDS:
+        assert f"\n    {cmd} " in text or f"\n    {cmd}\n" in text, cmd
+
+
+@pytest.mark.parametrize("cmd", COMMANDS)
+def test_every_command_has_a_description_and_an_example(capsys, cmd):
+    text = help_of(capsys, cmd)
+    usage, description = text.split("\n\n")[:2]
+    assert usage.startswith(f"usage: brdfcl {cmd} ")
+    assert not description.startswith(("positional", "options")) and len(description.split()) > 10, description
+    assert "\nexample" in text and f"\n  brdfcl {cmd}" in text.split("\nexample")[1]
+    assert "-\n" not in text                                            # no word split at a hyphen
+
+
+def test_fit_all_help_names_every_format_it_reads(capsys):
+    from brdfcl.data.readers import READERS
+    text = " ".join(help_of(capsys, "fit-all").split())
+    description = text.split(" positional arguments:")[0]
+    for suffix in (".binary", *READERS):
+        assert suffix in description, suffix
+    assert "MERL .binary" in description and "Cornell .brdf" in description
+
+
+def test_fit_all_help_says_what_it_fits_without_model(capsys):
+    """The default the help states is what a run without --model chooses among (brdfcl.optim.forms)."""
+    from brdfcl.optim.fit import FitOptions
+    from brdfcl.optim.forms import DEFAULT_FORMS, form_keys, resolve
+    parse = cli.build_parser().parse_args
+    text = " ".join(help_of(capsys, "fit-all").split())
+    args = parse(["fit-all", "--demo", "--out", "o"])
+    chosen = resolve(cli._forms(args), cli.fit_options(args), model_given="model" in vars(args))
+    assert chosen == DEFAULT_FORMS
+    keys = ", ".join(form_keys(FitOptions().model, chosen))
+    assert f"without --model: diffuse + diffraction + a reflection lobe whose form is chosen per material " \
+           f"among {keys}" in text
+    assert f"reflection lobe in each of the forms {keys} (NDF:Fresnel)" in text
+    assert f"(default {FitOptions().model}" not in text.split("--metric")[0]     # not a model of its own
+    # only a model asked for is fitted as given
+    args = parse(["fit-all", "--demo", "--out", "o", "--model", FitOptions().model])
+    assert resolve(cli._forms(args), cli.fit_options(args), model_given=True) is None

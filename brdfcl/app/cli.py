@@ -12,6 +12,7 @@ import logging
 import os
 import re
 import sys
+import textwrap
 
 from brdfcl._version import __version__
 from brdfcl.app.arguments import UsageError, add_database_arguments, default_of, fit_options
@@ -20,6 +21,61 @@ from brdfcl.app.arguments import UsageError, add_database_arguments, default_of,
 __all__ = ["UsageError", "build_parser", "fit_options", "main"]
 MESSAGE_CHARS = 400                 # a longer error line is cut in its middle (--debug shows all)
 NUMBER = re.compile(r"^-\d+$|^-\d*\.\d+")     # a negative number is a value, not an option
+
+# What `brdfcl --help` says (the developer notes are this module's docstring)
+DESCRIPTION = """\
+brdfcl fits analytic BRDF models (diffuse, diffraction and Cook-Torrance reflection lobes) to
+measured BRDF databases with OpenCL, on the CPU by default or on any OpenCL device. It reads
+MERL .binary tables and Cornell .brdf and .csv sample files, writes each material's fit
+(NAME.json), a summary table and an HTML report, and tests which materials show diffraction."""
+EXAMPLES = """\
+examples:
+  brdfcl synth merl/                     write a synthetic database to try
+  brdfcl fit-all merl/ --out out/merl    fit every material of merl/
+  brdfcl fit-all --demo --out out/demo   fit the embedded demo database
+  brdfcl analyze merl/ --out out/tests   which materials show diffraction
+  brdfcl info                            the OpenCL devices brdfcl can use
+
+`brdfcl COMMAND --help` describes a command and its options. An error is one line; --debug
+shows its traceback."""
+
+
+class HelpFormatter(argparse.HelpFormatter):
+    """Wraps a description's or epilog's prose to the terminal, a paragraph at a time, and keeps
+    an indented line (an example) as written; never breaks a line at a hyphen (fit-all,
+    synth-fabric, --select-lobes stay whole)."""
+
+    def _split_lines(self, text, width):
+        return textwrap.wrap(" ".join(text.split()), width, break_on_hyphens=False)
+
+    def _fill_text(self, text, width, indent):
+        blocks = []
+        for para in text.strip("\n").split("\n\n"):
+            lines: list[str] = []
+            prose: list[str] = []
+            for line in [*para.splitlines(), None]:
+                if (line is None or line.startswith("  ")) and prose:
+                    lines.append(textwrap.fill(" ".join(prose), width, initial_indent=indent,
+                                               subsequent_indent=indent, break_on_hyphens=False))
+                    prose = []
+                if line is not None:
+                    (lines.append(indent + line) if line.startswith("  ") else prose.append(line.strip()))
+            blocks.append("\n".join(lines))
+        return "\n\n".join(blocks)
+
+
+def default_fit_text(model: str, forms: str, short: bool = False) -> str:
+    """What fit-all fits without --model (brdfcl.optim.forms.resolve): ``model``'s lobes, its
+    reflection lobe in each of the candidate ``forms``, the best form kept per material."""
+    from brdfcl.model.compose import Model
+    from brdfcl.optim.forms import form_keys
+    lobes = " + ".join([lb.spec().split(":")[0] for lb in Model(model).lobes if lb.role != "reflection"]
+                       + ["a reflection lobe"])
+    keys = ", ".join(form_keys(model, forms))
+    if short:
+        return f"{lobes} whose form is chosen per material among {keys}, see --forms"
+    return (f"each material is fitted with {lobes} in each of the forms {keys} (NDF:Fresnel) and the form "
+            "of least penalised error is kept (see --forms)")
 
 
 class Parser(argparse.ArgumentParser):
@@ -300,24 +356,43 @@ def build_parser():
     from brdfcl.app import calibrate
     from brdfcl.app.analyze import analyze
     from brdfcl.app.run import fit_all
-    from brdfcl.model.synth import write_spectral_synth, write_synth
+    from brdfcl.model.synth import DEMO, SPECTRAL, write_spectral_synth, write_synth
     from brdfcl.optim.fit import FitOptions
-    ap = Parser(prog="brdfcl", description=__doc__)
+    from brdfcl.optim.forms import DEFAULT_FORMS
+    ap = Parser(prog="brdfcl", formatter_class=HelpFormatter, description=DESCRIPTION, epilog=EXAMPLES)
     ap.add_argument("--version", action="version", version=f"brdfcl {__version__}")
     ap.add_argument("--debug", action="store_true", help="show tracebacks")
-    sub = ap.add_subparsers(dest="cmd", metavar="COMMAND")       # Parser.parse_args asks for one
+    sub = ap.add_subparsers(dest="cmd", metavar="COMMAND", title="commands")    # Parser.parse_args asks for one
     common = Parser(add_help=False)
     common.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help="show tracebacks")
     add = sub.add_parser
-    sub.add_parser = lambda *a, **kw: add(*a, parents=[common], **kw)
+    sub.add_parser = lambda *a, **kw: add(*a, parents=[common], formatter_class=HelpFormatter, **kw)
+    device_help = "OpenCL device: an index or part of a name from brdfcl info (default: the one it marks chosen)"
 
-    p = sub.add_parser("info", help="list OpenCL devices, the vector width used on each and its self-test")
-    p.add_argument("--device", default=None, help="device index or name (default: the first CPU that builds)")
-    p.add_argument("--vector-width", type=int, default=None, help="check this width instead of choosing")
+    p = sub.add_parser("info", help="list the OpenCL devices, the one brdfcl uses, their vector widths and "
+                                    "self-tests",
+                       description="List every OpenCL platform and device, whether brdfcl can build its programs "
+                                   "there and which device it uses by default (exit status 1 where none can be "
+                                   "used); for each usable device, the vector width brdfcl runs at, why, and "
+                                   "the result of its self-test.",
+                       epilog="examples:\n  brdfcl info\n  brdfcl info --device 1")
+    p.add_argument("--device", default=None, help=device_help)
+    p.add_argument("--vector-width", type=int, default=None,
+                   help="check this vector width instead of the one brdfcl chooses")
     p.set_defaults(func=cmd_info)
 
-    p = sub.add_parser("synth", help="write the synthetic demo database (MERL format), or with --like "
-                                     "spectral materials at the directions and bands of a measurement")
+    n_demo = len(DEMO)
+    p = sub.add_parser("synth", help=f"write a synthetic database to try brdfcl on ({n_demo} MERL tables of known "
+                                     "parameters)",
+                       description=f"Write the synthetic demo database to OUT: {n_demo} materials made from known "
+                                   "parameters, as MERL .binary tables, and truth.json with those parameters "
+                                   "(fit-all --demo fits the same materials). With --like FILE, write instead "
+                                   f"{len(SPECTRAL)} synthetic spectral materials at the sample directions and "
+                                   "wavelengths of a real measurement, as Cornell .brdf and .csv sample files, "
+                                   "one folder per format.",
+                       epilog="examples:\n  brdfcl synth merl/\n  brdfcl fit-all merl/ --out out/merl\n"
+                              "  brdfcl synth merl-noisy/ --noise 0.01 --missing 0.01\n"
+                              "  brdfcl synth --like krylon_blue.brdf --out spectral/")
     p.add_argument("out", nargs="?", default=None, help="output folder (or --out)")
     p.add_argument("--out", dest="out_flag", metavar="DIR", default=None, help="output folder")
     p.add_argument("--like", metavar="FILE", default=None,
@@ -334,14 +409,30 @@ def build_parser():
     p.add_argument("--seed", type=int, default=default_of(write_synth, "seed"),
                    help="seed of the noise and missing cells (default %(default)s)")
     p.add_argument("--materials", default=None,
-                   help="comma-separated subset of the demo materials (with --like: of the spectral ones)")
+                   help=f"comma-separated subset of the demo materials ({', '.join(DEMO)}; with --like: of the "
+                        f"spectral ones, {', '.join(SPECTRAL)})")
     p.set_defaults(func=cmd_synth)
 
-    p = sub.add_parser("fit-all", help="fit every measurement of a folder: MERL .binary, Cornell .brdf, "
-                                       "CSV samples (or --demo)")
-    add_database_arguments(p, "fit", "output folder, outside the input data (resumes results "
-                                      "made there with the same options)", fit_all)
-    p.add_argument("--export-merl", action="store_true", help="write each fitted model as NAME.binary")
+    default_fit = default_fit_text(FitOptions().model, DEFAULT_FORMS)
+    p = sub.add_parser("fit-all", help="fit every measurement of a folder: MERL .binary, Cornell .brdf, .csv "
+                                       "samples (or --demo)",
+                       description="Fit an analytic BRDF model to every measurement of a database folder: MERL "
+                                   ".binary tables, Cornell .brdf and .csv sample files (in the folder itself, not "
+                                   f"its subfolders), or to one such file, or to the demo database (--demo). "
+                                   f"Without --model, {default_fit}. Writes OUT/NAME.json per material "
+                                   "(parameters, errors, options), OUT/summary.csv and the report "
+                                   "OUT/report/index.html. A run into an OUT that holds results made with the "
+                                   "same options keeps them and fits only the rest.",
+                       epilog="examples:\n  brdfcl fit-all merl/ --out out/merl\n  brdfcl fit-all --demo --out "
+                              "out/demo\n  brdfcl fit-all merl/ --out out/ggx --model diffuse+diffraction+ggx\n"
+                              "  brdfcl fit-all merl/ --out out/lobes --select-lobes --export-merl")
+    add_database_arguments(p, "fit", "output folder, outside the input data (a rerun keeps the results "
+                                      "made there with the same options)", fit_all,
+                           model_help="fit this one model to every material, e.g. diffuse+ggx (brdfcl params "
+                                      "MODEL lists its parameters); without --model: "
+                                      + default_fit_text(FitOptions().model, DEFAULT_FORMS, short=True))
+    p.add_argument("--export-merl", action="store_true",
+                   help="also write each fit tabulated as a MERL table, OUT/NAME.binary")
     p.add_argument("--rgb", action="store_true",
                    help="fit spectral samples as linear sRGB (D65, CIE 1931 2 deg; needs colour-science: "
                         "pip install brdfcl[rgb]) instead of one channel per band")
@@ -349,35 +440,61 @@ def build_parser():
                    help="refit and replace results in --out that were made with other options "
                         "(without it such results stop the run)")
     p.add_argument("--select-lobes", action="store_true",
-                   help="fit with and without each lobe and keep what the material needs (brdfcl analyze)")
-    from brdfcl.optim.forms import DEFAULT_FORMS
+                   help="fit with and without each lobe, as brdfcl analyze compares them, and keep the lobes "
+                        "each material needs")
     p.add_argument("--forms", default=None, metavar="FORMS",
                    help="fit each material's reflection lobe in each of these forms and keep the one of least "
                         "penalised error (as --select-lobes chooses lobes): NDF:FRESNEL pairs, e.g. "
                         "gtr:dielectric,abc:schlick, or every NDF with every Fresnel, e.g. ggx,gtr:schlick,dielectric; "
                         f"'none': the model as given (default: {DEFAULT_FORMS} unless --model or --fix is given)")
-    p.add_argument("--workers", type=int, default=0, help="fit on a local Dask cluster of N workers")
+    p.add_argument("--workers", type=int, default=0,
+                   help="fit on a local Dask cluster of N workers (pip install brdfcl[cluster])")
     p.add_argument("--scheduler", default=None, help="fit on the Dask cluster at this address")
     p.set_defaults(func=cmd_fit_all)
 
     calibrate.add_parser(sub)
 
-    p = sub.add_parser("analyze", help="gradient test, wavelength check and lobe selection per material")
-    add_database_arguments(p, "analyse", "output folder", analyze)
+    p = sub.add_parser("analyze", help="test which materials show diffraction: gradient test, wavelength check, "
+                                       "lobe comparison",
+                       description="Test every material of a database folder (MERL .binary tables, Cornell .brdf "
+                                   "and .csv sample files) or of the demo database (--demo) for diffraction: the "
+                                   "gradient test (tables only), the wavelength check and the lobe comparison "
+                                   "(the model fitted with and without its diffraction and its reflection lobe). "
+                                   "Writes each material's verdict and test results to OUT/analysis.csv, with "
+                                   "maps (NAME.exr), figures and OUT/index.html, and the run's report in "
+                                   "OUT/report/.",
+                       epilog="examples:\n  brdfcl analyze merl/ --out out/analysis\n"
+                              "  brdfcl analyze --demo --out out/demo-analysis")
+    add_database_arguments(p, "analyse", "output folder", analyze,
+                           model_help=f"the full model whose lobes are compared (default {FitOptions().model}; "
+                                      "it needs a diffuse, a diffraction and a reflection lobe)")
     p.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     p.set_defaults(func=cmd_analyze)
 
-    p = sub.add_parser("export", help="a finished fit (OUT/NAME.json) for a renderer: BRDF Explorer, MERL")
+    p = sub.add_parser("export", help="write a finished fit for a renderer: BRDF Explorer, MERL table",
+                       description="Write a finished fit (OUT/NAME.json written by fit-all) for a renderer, "
+                                   "without fitting again: as a BRDF Explorer .brdf file (its analytic GLSL "
+                                   "format) and/or tabulated as a MERL .binary table.",
+                       epilog="examples:\n  brdfcl export out/merl/synth-fabric.json --brdf-explorer fabric.brdf\n"
+                              "  brdfcl export out/merl/synth-fabric.json --merl fabric-fit.binary")
     p.add_argument("fit", help="a NAME.json written by fit-all")
     p.add_argument("--brdf-explorer", metavar="PATH", help="write a BRDF Explorer .brdf file (analytic GLSL)")
     p.add_argument("--merl", metavar="PATH", help="write the fitted model tabulated as a MERL .binary")
-    p.add_argument("--device", default=None, help="OpenCL device for --merl (default: the first CPU that builds)")
+    p.add_argument("--device", default=None, help=f"for --merl: {device_help}")
     p.set_defaults(func=cmd_export)
 
-    p = sub.add_parser("terms", help="every D, G, F and PSD term with its parameters and source (Markdown)")
+    p = sub.add_parser("terms", help="every D, G, F and PSD term with its parameters and source (Markdown)",
+                       description="Print every term a model is built from (microfacet distributions D, "
+                                   "shadowing G, Fresnel F, diffraction PSDs) with its parameters and the paper "
+                                   "it comes from, as Markdown.",
+                       epilog="example:\n  brdfcl terms > terms.md")
     p.set_defaults(func=cmd_terms)
 
-    p = sub.add_parser("params", help="list a model's parameters, bounds and units")
+    p = sub.add_parser("params", help="list a model's parameters, bounds and units",
+                       description="List a model's lobes and parameters: each one's bounds, default, the range "
+                                   "the global search draws from, whether it is searched in log space, its unit "
+                                   "and meaning.",
+                       epilog="examples:\n  brdfcl params\n  brdfcl params diffuse+gtr:smith:dielectric")
     p.add_argument("model", nargs="?", default=FitOptions().model, help="model string (default %(default)s)")
     p.set_defaults(func=cmd_params)
     return ap
