@@ -262,7 +262,12 @@ def _forms(args) -> str:
     return "none" if "model" in vars(args) or "fix" in vars(args) else "default"
 
 
+# how to go on when --out holds results made with other options (brdfcl.app.resume.ResultsDiffer)
+RESUME_PROCEED = "to proceed, give another output folder (--out), or add --overwrite to refit and replace those results"
+
+
 def cmd_fit_all(args):
+    from brdfcl.app.resume import OPTION_FLAGS, ResultsDiffer
     from brdfcl.app.run import fit_all
     source, opts, log = _database_job(args)
     client = None
@@ -274,6 +279,8 @@ def cmd_fit_all(args):
                          quiet=args.quiet, log=log, client=client, select_lobes=args.select_lobes,
                          free_peak=args.free_peak, overwrite=args.overwrite, pages=not args.no_report,
                          rgb=args.rgb, forms=_forms(args))
+    except ResultsDiffer as e:          # in the command line's words, not the Python API's
+        raise ValueError(e.message(OPTION_FLAGS, RESUME_PROCEED)) from e
     finally:
         if client is not None:
             client.close()
