@@ -145,3 +145,46 @@ def test_fit_all_help_says_what_it_fits_without_model(capsys):
     # only a model asked for is fitted as given
     args = parse(["fit-all", "--demo", "--out", "o", "--model", FitOptions().model])
     assert resolve(cli._forms(args), cli.fit_options(args), model_given=True) is None
+
+
+# ---- a mistyped model -------------------------------------------------------------------------
+
+@pytest.mark.parametrize("spec, says", [
+    ("difraction+ggx", "unknown lobe 'difraction'; did you mean 'diffraction'? lobes: "),
+    ("DIFRACTION+ggx", "unknown lobe 'difraction'; did you mean 'diffraction'? lobes: "),
+    ("difraction:hp+ggx", "unknown lobe 'difraction' in 'difraction:hp'; did you mean 'diffraction'? lobes: "),
+    ("diffuse+gxx", "unknown lobe 'gxx'; did you mean 'ggx'? lobes: "),
+    ("diffraction:hpp+ggx", "'diffraction:hpp': bad option 'hpp'; did you mean 'hp'? lobes: "),
+    ("ggx:smth", "'ggx:smth': bad option 'smth'; did you mean 'smith'? lobes: "),
+    ("diffuse+ggx:smith:schlik", "'ggx:smith:schlik': bad option 'schlik'; did you mean 'schlick'? lobes: "),
+    ("diffraction:hp:abc", "'diffraction:hp:abc': two PSDs; give one; lobes: "),
+    ("ggx:schlick:dielectric", "'ggx:schlick:dielectric': two Fresnel terms; give one; lobes: "),
+    ("diffuse+phong", "unknown lobe 'phong'; lobes: "),
+])
+def test_a_mistyped_model_gets_the_nearest_name(spec, says):
+    from brdfcl.model.compose import Model, ModelError
+    with pytest.raises(ModelError) as e:
+        Model(spec)
+    assert str(e.value).startswith(says), str(e.value)
+
+
+def test_a_mistyped_fixed_parameter_gets_the_nearest_name():
+    from brdfcl.model.compose import Model, ModelError
+    with pytest.raises(ModelError, match=r"^cannot fix 'ct.alhpa': not a parameter of diffuse\+ggx:smith:schlick; "
+                                         r"did you mean 'ct.alpha'\? parameters: diffuse.rho_r, "):
+        Model("diffuse+ggx", fixed={"ct.alhpa": 0.1})
+
+
+def test_fit_all_says_the_model_typo_once(capsys, tmp_path):
+    assert cli.main(["fit-all", "--demo", "--out", str(tmp_path / "o"), "--model", "difraction+ggx"]) == 2
+    out, err = capsys.readouterr()
+    assert err.startswith("brdfcl: error: unknown lobe 'difraction'; did you mean 'diffraction'? lobes: diffuse, ")
+    assert err.count("difraction") == 1 and len(err.splitlines()) == 1 and not (tmp_path / "o").exists()
+
+
+def test_no_far_fetched_parameter_is_suggested():
+    """ct.F0_r in a model with a dielectric Fresnel (ct.eta) is no typo of ct.rho_r."""
+    from brdfcl.model.compose import Model, ModelError
+    with pytest.raises(ModelError) as e:
+        Model("diffuse+gtr:smith:dielectric", fixed={"ct.F0_r": 0.5})
+    assert "did you mean" not in str(e.value)
