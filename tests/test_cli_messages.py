@@ -188,3 +188,16 @@ def test_no_far_fetched_parameter_is_suggested():
     with pytest.raises(ModelError) as e:
         Model("diffuse+gtr:smith:dielectric", fixed={"ct.F0_r": 0.5})
     assert "did you mean" not in str(e.value)
+
+
+# ---- plurals ----------------------------------------------------------------------------------
+
+def test_counted_nouns():
+    from brdfcl._words import count, noun
+    assert [count(n, "material") for n in (0, 1, 2)] == ["0 materials", "1 material", "2 materials"]
+    assert count(1, "sample set") == "1 sample set" and noun(3, "entry", "entries") == "entries"
+
+
+def test_synth_of_one_material_says_one(capsys, tmp_path):
+    assert cli.main(["synth", str(tmp_path), "--materials", "synth-fabric"]) == 0
+    assert f"wrote 1 material and truth.json to {tmp_path}\n" in capsys.readouterr().out

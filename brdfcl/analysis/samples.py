@@ -33,6 +33,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from brdfcl._words import count
 from brdfcl.analysis.analyze import COMPARED, Rule, _fmt, final_fit, final_key, fit_columns, lobe_gain, peak_share
 from brdfcl.analysis.spectral import SpectralCheck, spectral_check
 from brdfcl.data.samples import Samples
@@ -99,7 +100,7 @@ class SampleAnalysis:
         s = self.spectral
         out = {"material": self.name, "verdict": self.verdict, **self.margins(),
                "selected_lobes": self.specs[self.selected], "final_model": self.final_model,
-               "data": f"{self.samples.n_samples} scattered samples, {len(self.lambdas)} bands",
+               "data": f"{count(self.samples.n_samples, 'scattered sample')}, {count(len(self.lambdas), 'band')}",
                "gradient_test": GRADIENT_NOT_RUN,
                "wavelength_ratio": _fmt(self.law_ratio),
                "rmse_log_full_grey": _fmt(self.fits[GREY].errors["rmse_log"]) if GREY in self.fits else "",

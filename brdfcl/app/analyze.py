@@ -14,6 +14,7 @@ from collections.abc import Callable, Iterator
 from dataclasses import replace
 from typing import Any
 
+from brdfcl._words import count
 from brdfcl.analysis.analyze import COMPARED, MaterialAnalysis, analyze_material, lobe_images
 from brdfcl.analysis.gradient import phi90_slice
 from brdfcl.analysis.samples import GREY, SampleAnalysis, analyze_samples, grey_lambdas
@@ -84,7 +85,7 @@ def analyze(source: Any, out: str | os.PathLike | None = None, options: FitOptio
         for k, f in fitters.items():
             t = time.perf_counter()
             fits[k] = {r.name: r for r in f.fit(names, full, coarse)}
-            run.log(f"fitted {len(names)} materials with {specs[k]} ({k}) in {time.perf_counter() - t:.1f} s")
+            run.log(f"fitted {count(len(names), 'material')} with {specs[k]} ({k}) in {time.perf_counter() - t:.1f} s")
         del full, coarse
         best_of_both(fits, "full", "full_local")
         for name, path in zip(names, read):
@@ -103,7 +104,8 @@ def analyze(source: Any, out: str | os.PathLike | None = None, options: FitOptio
         finished(sa, path)
         n = sa.spectral.exponent if sa.spectral else float("nan")
         run.log(f"{sa.name}: {sa.verdict} (lobes {sa.specs[sa.selected]}, wavelength law ratio {sa.law_ratio:.2f} "
-                f"over {len(sa.lambdas)} bands, lambda exponent {n:.2f}; gradient test not run on scattered samples)")
+                f"over {count(len(sa.lambdas), 'band')}, lambda exponent {n:.2f}; gradient test not run on scattered "
+                "samples)")
     run.finish()
     if results.skipped and not results:
         where = source if isinstance(source, (str, os.PathLike)) else "the given files"
@@ -159,7 +161,7 @@ def _analyze_samples(run: Runner, paths: list[str], opts: FitOptions, specs: dic
             for k, f in fitters.items():
                 t = time.perf_counter()
                 fits[k] = {r.name: r for r in f.fit_samples(samples)}
-                run.log(f"fitted {len(samples)} sample sets ({len(lambdas)} bands) with "
+                run.log(f"fitted {count(len(samples), 'sample set')} ({count(len(lambdas), 'band')}) with "
                         f"{specs.get(k, specs['full'])} ({k}) in {time.perf_counter() - t:.1f} s")
             best_of_both(fits, "full", "full_local")
             best_of_both(fits, GREY, GREY + "_local")

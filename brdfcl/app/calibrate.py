@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from brdfcl._words import count
 from brdfcl.analysis import nbrdf, power
 from brdfcl.analysis.analyze import RULE, Rule
 from brdfcl.analysis.calibration import QUICK, Compared, Plan, analyse_cases, synthesize
@@ -207,7 +208,7 @@ def _markdown(rows, by, kinds, res, thr, chosen, columns, halo, null_classes, fp
     n_cases = {k: len(v) for k, v in by.items()}
     L += [f"Cases: {', '.join(f'{n} {k}' for k, n in n_cases.items())} (diffraction classes "
           f"{', '.join(halo)}; no-diffraction classes {', '.join(null_classes)}); NBRDF round trip "
-          f"{epochs} epochs." if epochs else "", ""]
+          f"{count(epochs, 'epoch')}." if epochs else "", ""]
     if timing:
         L += ["Run time: " + ", ".join(f"{k} {v / 60:.1f} min" for k, v in timing.items() if v) + ".", ""]
     L += [f"## Each test alone at <= {100 * fp:.0f}% false positives (thresholds chosen on the no-diffraction "

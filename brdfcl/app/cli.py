@@ -15,6 +15,7 @@ import sys
 import textwrap
 
 from brdfcl._version import __version__
+from brdfcl._words import count, noun
 from brdfcl.app.arguments import UsageError, add_database_arguments, default_of, fit_options
 
 # fit_options and UsageError are this module's too (tests and scripts import them from here)
@@ -221,20 +222,20 @@ def cmd_synth(args):
         bad = [m for m in mats if m not in known]
         if bad:
             close = difflib.get_close_matches(bad[0], known, n=1)
-            raise UsageError(f"unknown {what} material{'s' * (len(bad) > 1)} {', '.join(bad)}; valid: "
+            raise UsageError(f"unknown {what} {noun(len(bad), 'material')} {', '.join(bad)}; valid: "
                              f"{', '.join(known)}" + (f" (did you mean {close[0]}?)" if close else ""))
     if not args.like:
         if args.formats is not None:
             raise UsageError("--formats applies to spectral materials (with --like FILE) only")
         write_synth(out, mats, noise=args.noise, missing=args.missing, seed=args.seed)
-        print(f"wrote {len(mats or DEMO)} materials and truth.json to {out}")
+        print(f"wrote {count(len(mats or DEMO), 'material')} and truth.json to {out}")
         return 0
     if args.missing:
         raise UsageError("--missing applies to the MERL demo only (not with --like)")
     formats = (args.formats.split(",") if args.formats is not None
                else default_of(write_spectral_synth, "formats"))
     write_spectral_synth(out, args.like, mats, noise=args.noise, seed=args.seed, formats=formats)
-    print(f"wrote {len(mats or SPECTRAL)} spectral materials at the directions and bands of {args.like} "
+    print(f"wrote {count(len(mats or SPECTRAL), 'spectral material')} at the directions and bands of {args.like} "
           f"and truth.json to {out}")
     return 0
 
@@ -286,7 +287,7 @@ def cmd_fit_all(args):
             client.close()
     n_ok = sum(r.success for r in report.results)
     failed = [r for r in report.results if not r.success]
-    print(f"fitted {n_ok} material{'s' * (n_ok != 1)} in {report.seconds:.1f} s ({len(report.resumed)} already done, "
+    print(f"fitted {count(n_ok, 'material')} in {report.seconds:.1f} s ({len(report.resumed)} already done, "
           f"{len(failed)} failed, {len(report.skipped)} skipped); results in {args.out}/summary.csv"
           + (f", report {report.pages}" if report.pages else ""))
     for r in failed:
@@ -305,7 +306,7 @@ def cmd_analyze(args):
     res = analyze(source, args.out, opts, batch=args.batch, log=log, figures=not args.no_figures,
                   ct_peak=not args.free_peak, on_skip=on_skip, pages=not args.no_report)
     n = sum(a.verdict == "diffraction" for a in res)
-    print(f"analysed {len(res)} material{'s' * (len(res) != 1)}: {n} with diffraction, {len(res) - n} without, "
+    print(f"analysed {count(len(res), 'material')}: {n} with diffraction, {len(res) - n} without, "
           f"{len(res.skipped)} skipped; see {args.out}/analysis.csv and {args.out}/index.html"
           + ("" if args.no_report else f", report {args.out}/report/index.html"))
     return 0 if res.ok else 1

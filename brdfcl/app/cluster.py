@@ -26,6 +26,7 @@ import math
 import os
 import traceback
 
+from brdfcl._words import count
 from brdfcl.app.runner import Runner
 from brdfcl.data.inputs import FileReader
 from brdfcl.data.merl import material_name
@@ -140,7 +141,8 @@ def fit_on_cluster(client, run: Runner, paths: list[str], opts: fit.FitOptions, 
     n_workers = max(1, len(client.scheduler_info().get("workers", {})))
     size = max(1, min(batch, math.ceil(len(paths) / (2 * n_workers))))
     chunks = [paths[i:i + size] for i in range(0, len(paths), size)]
-    run.log(f"cluster: {len(chunks)} chunks of up to {size} materials on {n_workers} workers")
+    run.log(f"cluster: {count(len(chunks), 'chunk')} of up to {count(size, 'material')} on "
+            f"{count(n_workers, 'worker')}")
     futures = [client.submit(fit_chunk, c, opts, forms, pure=False, retries=2) for c in chunks]
     chunk_of = {f.key: c for f, c in zip(futures, chunks)}
     with run.tracking(len(paths)):
