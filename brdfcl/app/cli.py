@@ -3,6 +3,11 @@
 One function per command (``cmd_*``), the parser (``build_parser``) and ``main``; the flags that
 make FitOptions, shared by fit-all and analyze, are brdfcl.app.arguments.  A command runs a job
 (brdfcl.app.run.fit_all, brdfcl.app.analyze.analyze) or a writer (``export``) and prints its outcome.
+
+What a user reads is written for users and kept apart from these notes: ``DESCRIPTION`` and
+``EXAMPLES`` are `brdfcl --help`, each command's description and examples are in build_parser;
+``Parser`` makes every usage error one line with a "did you mean", ``HelpFormatter`` keeps the
+examples as written.
 """
 from __future__ import annotations
 
