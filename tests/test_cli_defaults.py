@@ -64,7 +64,7 @@ def test_help_shows_the_defaults_of_the_classes(capsys):
     d = FitOptions()
     for cmd, job in (("fit-all", fit_all), ("analyze", analyze)):
         text = help_text(capsys, cmd)
-        for shown in (f"model string (default {d.model};", f"fit metric (default {d.metric})",
+        for shown in (f"fit metric (default {d.metric})",
                       f"default {d.cutoff_deg:g})", f"global search (default {d.global_method})",
                       f"Sobol candidates per material (lds; default {d.n_candidates})",
                       f"local searches per material (lds; default {d.n_starts})",
@@ -98,8 +98,10 @@ def test_cli_follows_a_changed_default(monkeypatch, capsys):
     # --max-iter changes only the iterations: the rest of the default LMOptions stays
     args = parse("analyze", "--demo", "--out", "o", "--max-iter", "9")
     assert_same_fields(cli.fit_options(args), Changed(lm=LMOptions(max_iter=9, ftol=1e-5)))
+    assert "compared (default diffuse+ggx;" in help_text(capsys, "analyze")
     text = help_text(capsys, "fit-all")
-    for shown in ("model string (default diffuse+ggx;", "fit metric (default cbrt)", "none; default none)",
+    assert "without --model: diffuse + a reflection lobe whose form is chosen per material among" in text
+    for shown in ("fit metric (default cbrt)", "none; default none)",
                   "float64 kernels and data (default float64)", "global search (default crs2)",
                   "(lds; default 17)", "(lds; default 3)", "iterations (default 7)", "search (default 11)"):
         assert shown in text, shown

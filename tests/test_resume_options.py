@@ -155,8 +155,10 @@ def test_resume_checks_the_options(db, tmp_path):
                                 (["--fix", "ct.F0_r=0.5"], "fixed", "--fix"),
                                 (["--ct-peak"], "ct_peak", "--ct-peak"),
                                 (["--max-iter", "20"], "lm.max_iter", "--max-iter")]:
-        line = one_error_line(cli(*base, *extra), option, flag, "--overwrite", "new output folder (--out)", "there")
+        line = one_error_line(cli(*base, *extra), option, f" ({flag}) is ", "there", "(and 1 more of the 2 materials)",
+                              "to proceed, give another output folder (--out), or add --overwrite to refit")
         assert f"{NAME}.json" in line or "synth-fabric.json" in line
+        assert "overwrite=True" not in line                         # the Python API's words, not the CLI's
     line = one_error_line(cli("fit-all", db, "--out", out, "--model", "diffuse+beckmann", "--quiet"),
                           "model (--model)", "diffuse+ggx", "diffuse+beckmann")
     assert snapshot(out) == before                                        # refused before any work
@@ -182,13 +184,30 @@ def test_results_of_an_older_brdfcl_count_as_different(db, tmp_path):
     doc = json.loads(p.read_text())
     del doc["options"]
     p.write_text(json.dumps(doc))
-    with pytest.raises(ResultsDiffer, match="older brdfcl"):
+    with pytest.raises(ResultsDiffer, match="older brdfcl") as e:
         fit_all(paths, out, model=MODEL)
+    assert str(e.value).endswith("; to proceed, pass another out, or overwrite=True to refit and replace those "
+                                 "results") and "--" not in str(e.value)      # the Python API's words
     assert "options" not in json.loads(p.read_text())
     r = cli("fit-all", db, "--out", out, "--model", MODEL)
-    one_error_line(r, "older brdfcl", "--overwrite")
-    rep = fit_all(paths, out, model=MODEL, overwrite=True)
+    one_error_line(r, "older brdfcl", "add --overwrite")
+    said: list[str] = []
+    rep = fit_all(paths, out, model=MODEL, overwrite=True, log=said.append)
     assert len(rep.results) == 1 and "options" in json.loads(p.read_text())
+    assert "overwrite: refitting 1 result made with other options" in said
+    fit_all(paths, out, model=MODEL, log=said.append)
+    assert f"resuming: 1 material already finished in {out}" in said
+
+
+def test_the_python_api_names_options_not_flags(db, tmp_path):
+    out = tmp_path / "out"
+    fit_all([db / f"{NAME}.binary"], out, model=MODEL, global_method="none")
+    with pytest.raises(ResultsDiffer) as e:
+        fit_all([db / f"{NAME}.binary"], out, model=MODEL, global_method="lds")
+    assert "was made with other options: global_method is \"none\" there, \"lds\" now; to proceed, pass " \
+           "another out, or overwrite=True" in str(e.value)
+    from brdfcl.app.resume import OPTION_FLAGS
+    assert "global_method (--global) is" in e.value.message(OPTION_FLAGS, "go on")
 
 
 @pytest.mark.slow

@@ -33,6 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from brdfcl._words import count
 from brdfcl.analysis.analyze import COMPARED, Analysis, Rule, _fmt, final_key, fit_columns, lobe_gain, peak_share
 from brdfcl.analysis.spectral import SpectralCheck, spectral_check
 from brdfcl.data.samples import Samples
@@ -81,7 +82,7 @@ class SampleAnalysis(Analysis):
     def row(self) -> dict:
         s = self.spectral
         out = {**self.head(),
-               "data": f"{self.samples.n_samples} scattered samples, {len(self.lambdas)} bands",
+               "data": f"{count(self.samples.n_samples, 'scattered sample')}, {count(len(self.lambdas), 'band')}",
                "gradient_test": GRADIENT_NOT_RUN,
                "wavelength_ratio": _fmt(self.law_ratio),
                "rmse_log_full_grey": _fmt(self.fits[GREY].errors["rmse_log"]) if GREY in self.fits else "",

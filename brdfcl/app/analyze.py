@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from brdfcl._words import count
 from brdfcl.analysis.analyze import COMPARED, MaterialAnalysis, analyze_material, lobe_images
 from brdfcl.analysis.gradient import phi90_slice
 from brdfcl.analysis.samples import GREY, SampleAnalysis, analyze_samples, grey_lambdas
@@ -88,8 +89,7 @@ def analyze(source: Any, out: str | os.PathLike | None = None, options: FitOptio
             t = time.perf_counter()
             fitted = f.fit_loaded(loaded) if same_cells(base, f) else f.fit(read)
             fits[k] = {r.name: r for r in fitted}
-            run.log(f"fitted {len(read)} material{'s' * (len(read) != 1)} with {specs[k]} ({k}) in "
-                    f"{time.perf_counter() - t:.1f} s")
+            run.log(f"fitted {count(len(read), 'material')} with {specs[k]} ({k}) in {time.perf_counter() - t:.1f} s")
         del loaded
         best_of_both(fits, "full", "full_local")
         for m in read:
@@ -110,7 +110,8 @@ def analyze(source: Any, out: str | os.PathLike | None = None, options: FitOptio
         finished(sa, path)
         n = sa.spectral.exponent if sa.spectral else float("nan")
         run.log(f"{sa.name}: {sa.verdict} (lobes {sa.specs[sa.selected]}, wavelength law ratio {sa.law_ratio:.2f} "
-                f"over {len(sa.lambdas)} bands, lambda exponent {n:.2f}; gradient test not run on scattered samples)")
+                f"over {count(len(sa.lambdas), 'band')}, lambda exponent {n:.2f}; gradient test not run on scattered "
+                "samples)")
     run.finish()
     if results.skipped and not results:
         where = source if isinstance(source, (str, os.PathLike)) else "the given files"
@@ -159,7 +160,7 @@ def _analyze_samples(run: Runner, groups: list[list[Measurement]], opts: FitOpti
             for k, f in fitters.items():
                 t = time.perf_counter()
                 fits[k] = {r.name: r for r in f.fit(samples)}
-                run.log(f"fitted {len(samples)} sample sets ({len(lambdas)} bands) with "
+                run.log(f"fitted {count(len(samples), 'sample set')} ({count(len(lambdas), 'band')}) with "
                         f"{specs.get(k, specs['full'])} ({k}) in {time.perf_counter() - t:.1f} s")
             best_of_both(fits, "full", "full_local")
             best_of_both(fits, GREY, GREY + "_local")

@@ -60,18 +60,18 @@ def default_of(func: Callable, name: str) -> Any:
     return inspect.signature(func).parameters[name].default
 
 
-def add_fit_arguments(p: argparse.ArgumentParser) -> None:
+def add_fit_arguments(p: argparse.ArgumentParser, model_help: str | None = None) -> None:
     """The flags that make FitOptions (see `fit_options`).  Their defaults are FitOptions' and
     LMOptions' own: a flag that is not given is absent from the parsed arguments, and its help
-    shows the field's default."""
+    shows the field's default.  ``model_help``: what --model does in this command (fit-all without
+    it chooses a form per material, so FitOptions' model is not its default there)."""
     from brdfcl.model.metrics import IMPLEMENTED_METRICS, METRICS
     from brdfcl.optim.fit import GLOBAL_METHODS, FitOptions
     d = FitOptions()
     cutoff = "none" if d.cutoff_deg is None else f"{d.cutoff_deg:g}"
     real = {"float": "float32", "double": "float64"}.get(d.real, d.real)
     opt = functools.partial(p.add_argument, default=argparse.SUPPRESS)    # absent unless given
-    opt("--model", help=f"model string (default {d.model}; fit-all without --model chooses its reflection "
-                        "lobe's form per material, see --forms)")
+    opt("--model", help=model_help or f"model string (default {d.model})")
     opt("--metric", choices=METRICS, help=f"fit metric (default {d.metric}); "
         + "; ".join(f"{m.name}: {m.doc}" for m in IMPLEMENTED_METRICS.values()))
     opt("--no-cos", dest="cosw", action="store_false",
@@ -81,7 +81,8 @@ def add_fit_arguments(p: argparse.ArgumentParser) -> None:
              f"(degrees, {NO_CUTOFF_DEG:g} or more: none; default {cutoff})")
     opt("--double", dest="real", action="store_const", const="double",
         help=f"float64 kernels and data (default {real})")
-    opt("--device", help="OpenCL device index or name (default: the first CPU device that builds)")
+    opt("--device", help="OpenCL device: an index or part of a name from brdfcl info (default: the one it "
+                         "marks chosen)")
     opt("--vector-width", type=int, choices=(1, 2, 4, 8, 16),
         help="cells per work-item on a CPU (default: the widest that passes the self-test; "
              "also BRDFCL_VECTOR_WIDTH)")
@@ -100,15 +101,17 @@ def add_fit_arguments(p: argparse.ArgumentParser) -> None:
     opt("--seed", type=int, help=f"seed of the global search (default {d.seed})")
 
 
-def add_database_arguments(p: argparse.ArgumentParser, verb: str, out_help: str, job: Callable) -> None:
+def add_database_arguments(p: argparse.ArgumentParser, verb: str, out_help: str, job: Callable,
+                           model_help: str | None = None) -> None:
     """What fit-all and analyze share: the database (or --demo), the output, the fit options.
     ``job``: the function the command runs (brdfcl.app.run.fit_all, brdfcl.app.analyze.analyze), whose
-    defaults the other flags take."""
+    defaults the other flags take; ``model_help``: see `add_fit_arguments`."""
     p.add_argument("database", nargs="?", default=None,
-                   help="folder of measurements (MERL .binary tables, Cornell .brdf or .csv samples) or one file")
+                   help="folder of measurements (MERL .binary tables, Cornell .brdf or .csv samples; not its "
+                        "subfolders) or one such file")
     p.add_argument("--demo", action="store_true", help=f"{verb} the embedded demo database")
     p.add_argument("--out", required=True, help=out_help)
-    add_fit_arguments(p)
+    add_fit_arguments(p, model_help)
     p.add_argument("--batch", type=int, default=default_of(job, "batch"),
                    help="materials per batch (all share each launch; default %(default)s)")
     p.add_argument("--quiet", action="store_true", help="no progress bar or stage messages")

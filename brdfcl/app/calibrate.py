@@ -51,7 +51,17 @@ def summarise(out, rows, fp=FP_TARGET, epochs=None, timing=None, log=print) -> d
 def add_parser(subparsers):
     """The ``calibrate`` command on an argparse subparsers object."""
     p = subparsers.add_parser("calibrate", help="detection power and false positives of the diffraction tests "
-                                                "on synthetic materials, before and after the NBRDF round trip")
+                                                "on synthetic materials, before and after the NBRDF round trip",
+                              description="Measure how well the diffraction tests of brdfcl analyze work: draw "
+                                          "synthetic materials with and without a diffraction lobe (MERL-like "
+                                          "noise and missing cells), analyse each as measured and, for some, "
+                                          "after the NBRDF round trip (a small network trained on the table), "
+                                          "and write the thresholds at the false-positive target, power curves "
+                                          "and figures to OUT/calibration.md. Each analysed case is appended to "
+                                          "OUT/cases.csv: a rerun resumes from it. --quick runs a handful of "
+                                          "cases in minutes.",
+                              epilog="examples:\n  brdfcl calibrate --quick --out out/calibration-quick\n"
+                                     "  brdfcl calibrate --out out/calibration --no-roundtrip")
     p.add_argument("--out", required=True, help="output folder (cases.csv, figures, calibration.md); "
                                                 "a rerun resumes the cases already in cases.csv")
     p.add_argument("--quick", action="store_true", help="a handful of cases and 2 training epochs (minutes)")
@@ -61,7 +71,9 @@ def add_parser(subparsers):
                         "the recipe: 100)")
     p.add_argument("--fp", type=float, default=FP_TARGET, help="false-positive target (default %(default)s)")
     p.add_argument("--seed", type=int, default=Plan().seed, help="seed of the cases (default %(default)s)")
-    p.add_argument("--device", default=None, help="OpenCL device of the fits (default: first CPU that builds)")
+    p.add_argument("--device", default=None,
+                   help="OpenCL device of the fits: an index or part of a name from brdfcl info (default: the one "
+                        "it marks chosen)")
     p.set_defaults(func=run)
     return p
 

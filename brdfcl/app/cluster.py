@@ -26,6 +26,7 @@ import math
 import os
 import traceback
 
+from brdfcl._words import count
 from brdfcl.app.runner import Runner
 from brdfcl.data.errors import DataError
 from brdfcl.data.merl import MerlError, material_name
@@ -158,7 +159,8 @@ def fit_on_cluster(client, run: Runner, paths: list[str], opts: fit.FitOptions, 
         lambdas = tuple(float(x) for x in g[0].wavelengths)
         for i in range(0, len(g), size):
             chunks.append(([m.path for m in g[i:i + size]], None if lambdas == default else lambdas))
-    run.log(f"cluster: {len(chunks)} chunks of up to {size} materials on {n_workers} workers")
+    run.log(f"cluster: {count(len(chunks), 'chunk')} of up to {count(size, 'material')} on "
+            f"{count(n_workers, 'worker')}")
     futures = [client.submit(fit_chunk, c, opts, forms, lam, rgb, pure=False, retries=2) for c, lam in chunks]
     chunk_of = {f.key: c for f, (c, _) in zip(futures, chunks)}
     with run.tracking(total):

@@ -42,6 +42,23 @@ def _valid_text():
             f"FRESNEL: {'|'.join(REGISTRY['fresnel'])}")
 
 
+def _did_you_mean(word: str, valid, cutoff: float = 0.6) -> str:
+    """"; did you mean 'X'?" for the valid word nearest ``word`` (difflib's similarity at least
+    ``cutoff``), or ";"."""
+    close = difflib.get_close_matches(word, list(valid), n=1, cutoff=cutoff)
+    return f"; did you mean '{close[0]}'?" if close else ";"
+
+
+def _bad_option(text: str, option: str, kinds: dict) -> ModelError:
+    """A lobe option that is none of the lobe's (with the nearest that is), or a second one of a
+    kind; ``kinds``: what the kinds are called -> their options."""
+    for what, options in kinds.items():
+        if option in options:
+            return ModelError(f"'{text}': two {what}; give one; {_valid_text()}")
+    valid = [o for options in kinds.values() for o in options]
+    return ModelError(f"'{text}': bad option '{option}'{_did_you_mean(option, valid)} {_valid_text()}")
+
+
 def parse_lobe(text: str, lambdas=LAMBDAS) -> Lobe:
     name, *opts = [t.strip().lower() for t in text.split(":")]
     if name == "diffuse":
@@ -53,7 +70,7 @@ def parse_lobe(text: str, lambdas=LAMBDAS) -> Lobe:
         for o in opts:
             key = "psd" if o in REGISTRY["psd"] else "fresnel" if o in REGISTRY["fresnel"] else None
             if key is None or key in kw:
-                raise ModelError(f"'{text}': bad option '{o}'; {_valid_text()}")
+                raise _bad_option(text, o, {"PSDs": REGISTRY["psd"], "Fresnel terms": REGISTRY["fresnel"]})
             kw[key] = o
         return Diffraction(lambdas=lambdas, **kw)
     if name in CT_NDFS:
@@ -64,15 +81,15 @@ def parse_lobe(text: str, lambdas=LAMBDAS) -> Lobe:
             elif o in REGISTRY["fresnel"] and "fresnel" not in kw:
                 kw["fresnel"] = o
             else:
-                raise ModelError(f"'{text}': bad option '{o}'; {_valid_text()}")
+                raise _bad_option(text, o, {"shadowing terms": SHADOWING_ALIASES,
+                                            "Fresnel terms": REGISTRY["fresnel"]})
         try:
             return CookTorrance(name, lambdas=lambdas, **kw)
         except (ValueError, KeyError) as e:
             raise ModelError(f"'{text}': {e}") from None
     where = f" in '{text}'" if text.strip().lower() != name else ""
-    close = difflib.get_close_matches(name, ["diffuse", "diffraction", *CT_NDFS], n=1)
-    hint = f"; did you mean '{close[0]}'?" if close else ";"
-    raise ModelError(f"unknown lobe '{name}'{where}{hint} {_valid_text()}")
+    raise ModelError(f"unknown lobe '{name}'{where}{_did_you_mean(name, ['diffuse', 'diffraction', *CT_NDFS])} "
+                     f"{_valid_text()}")
 
 
 def lobe_prefixes(kinds):
@@ -113,7 +130,8 @@ class Model:
         self.fixed = {}
         for k, v in (fixed or {}).items():
             if k not in self._pos:
-                raise ModelError(f"cannot fix '{k}': not a parameter of {self.spec}; "
+                hint = _did_you_mean(k, self.names, cutoff=0.75)      # ct.F0_r is no typo of ct.rho_r
+                raise ModelError(f"cannot fix '{k}': not a parameter of {self.spec}{hint} "
                                  f"parameters: {', '.join(self.names)}")
             self.fixed[k] = float(v)
         self.lo = _frozen(np.array([s.param.lo for s in self.slots]))

@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from brdfcl._cache import cache_dir
+from brdfcl._words import count, noun
 from brdfcl.data.cornell import write_cornell
 from brdfcl.data.csvsamples import write_csv
 from brdfcl.data.errors import DataError
@@ -90,7 +91,8 @@ def write_synth(out_dir, materials=None, noise=0.0, missing=0.0, seed=0, log=pri
     names = list(DEMO) if materials is None else list(materials)
     unknown = [n for n in names if n not in DEMO]
     if unknown:
-        raise ValueError(f"unknown demo material(s) {', '.join(unknown)}; valid: {', '.join(DEMO)}")
+        raise ValueError(f"unknown demo {noun(len(unknown), 'material')} {', '.join(unknown)}; valid: "
+                         f"{', '.join(DEMO)}")
     rng = np.random.default_rng(seed)
     truth = {}
     for name in names:
@@ -221,7 +223,8 @@ def _formats(formats: str | Iterable[str]) -> list[str]:
     names = list(dict.fromkeys(f for f in names if f))
     bad = [f for f in names if f not in SPECTRAL_FORMATS]
     if bad or not names:
-        raise ValueError(f"unknown format(s) {', '.join(bad) or '(none given)'}; valid: {', '.join(SPECTRAL_FORMATS)}")
+        raise ValueError(f"unknown {noun(len(bad), 'format')} {', '.join(bad) or '(none given)'}; valid: "
+                         f"{', '.join(SPECTRAL_FORMATS)}")
     return names
 
 
@@ -239,7 +242,8 @@ def write_spectral_synth(out_dir, like, materials=None, noise=0.0, seed=0, forma
     names = list(SPECTRAL) if materials is None else list(materials)
     unknown = [n for n in names if n not in SPECTRAL]
     if unknown:
-        raise ValueError(f"unknown spectral material(s) {', '.join(unknown)}; valid: {', '.join(SPECTRAL)}")
+        raise ValueError(f"unknown spectral {noun(len(unknown), 'material')} {', '.join(unknown)}; valid: "
+                         f"{', '.join(SPECTRAL)}")
     fmts = _formats(formats)
     if noise < 0 or not np.isfinite(noise):
         raise ValueError(f"noise {noise}: must be a finite number >= 0")
@@ -269,7 +273,7 @@ def write_spectral_synth(out_dir, like, materials=None, noise=0.0, seed=0, forma
         if log:
             where = [name + SPECTRAL_FORMATS[f] if len(fmts) == 1 else f"{f}/{name}{SPECTRAL_FORMATS[f]}"
                      for f in fmts]
-            log(f"{name}: {model.spec} at {samples.n_samples} samples x {samples.n_channels} bands "
+            log(f"{name}: {model.spec} at {count(samples.n_samples, 'sample')} x {count(samples.n_channels, 'band')} "
                 f"({', '.join(where)})")
     doc = {"like": os.path.abspath(os.fspath(like)), "formats": fmts, "noise": noise, "seed": seed,
            "wavelengths_nm": [1000.0 * float(x) for x in src.wavelengths],

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from brdfcl._words import count
 from brdfcl.analysis import power
 from brdfcl.analysis.analyze import RULE
 from brdfcl.analysis.calibration_summary import FP_TARGET, LEGACY, Summary, detector, rule_text
@@ -32,7 +33,7 @@ def markdown(summary: Summary, fp=FP_TARGET, epochs=None, timing=None) -> str:
     n_cases = {k: len(v) for k, v in by.items()}
     L += [f"Cases: {', '.join(f'{n} {k}' for k, n in n_cases.items())} (diffraction classes "
           f"{', '.join(halo)}; no-diffraction classes {', '.join(null_classes)}); NBRDF round trip "
-          f"{epochs} epochs." if epochs else "", ""]
+          f"{count(epochs, 'epoch')}." if epochs else "", ""]
     if timing:
         L += ["Run time: " + ", ".join(f"{k} {v / 60:.1f} min" for k, v in timing.items() if v) + ".", ""]
     L += [f"## Each test alone at <= {100 * fp:.0f}% false positives (thresholds chosen on the no-diffraction "

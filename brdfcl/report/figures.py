@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from brdfcl._words import count
 from brdfcl.data.geometry import bin_centres
 from brdfcl.model.lobes.diffraction import LAMBDAS
 from brdfcl.report import style as FS
@@ -71,7 +72,7 @@ def _gradient_figure(plt, a):
         ax.pcolormesh(x, y, votes[c], cmap=cmap, norm=norm, shading="auto", rasterized=True)
         n_d = int((votes[c] == FS.VOTE_DIFFRACTION).sum())
         score = "n/a (no decided cell)" if not np.isfinite(g.score[c]) else f"{g.score[c]:.2f}"
-        ax.set_title(f"{ch}: score {score}\n= {n_d} diffraction / {int(g.n_cells[c])} decided cells",
+        ax.set_title(f"{ch}: score {score}\n= {n_d} diffraction / {count(int(g.n_cells[c]), 'decided cell')}",
                      color=FS.CHANNEL_COLORS[c])
         FS.angle_axes(ax, xlabel=False, ylabel=c == 0)
         ax = axes[1, c]

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from brdfcl._words import count
 from brdfcl.model.lobes.cells import Cells
 from brdfcl.report import style as FS
 from brdfcl.report.figures import _draw
@@ -84,7 +85,7 @@ def _in_plane_figure(plt, what):
         ax.set_yscale("log")
         ax.set_xlim(-90, 90)
         ax.set_xticks(range(-90, 91, 30))
-        ax.set_title(rf"$\theta_i$ = {np.degrees(ti):.0f}$^\circ$ ({int(here.sum())} samples)")
+        ax.set_title(rf"$\theta_i$ = {np.degrees(ti):.0f}$^\circ$ ({count(int(here.sum()), 'sample')})")
         ax.set_xlabel(r"$\theta_o$ (degrees)")
         ax.grid(True, which="major", color="0.9", lw=0.8)
     if not panels:
@@ -153,8 +154,9 @@ def _spectral_figure(plt, a):
     collapse = "collapse better against $f_c$" if s.ratio < 1 else "do not collapse better against $f_c$"
     law = getattr(a, "law_ratio", float("nan"))
     n = f"{s.exponent:.2f} +- {s.exponent_se:.2f}" if np.isfinite(s.exponent) else "n/a"
-    fig.suptitle(f"{a.name}: wavelength check over {lam.size} bands ({s.n_wide} wide-angle samples; lines: "
-                 f"the scaled band medians)\nresidual band curves: ratio of spreads {s.ratio:.2f}, they {collapse}; "
+    fig.suptitle(f"{a.name}: wavelength check over {count(lam.size, 'band')} "
+                 f"({count(s.n_wide, 'wide-angle sample')}; lines: the scaled band medians)\n"
+                 f"residual band curves: ratio of spreads {s.ratio:.2f}, they {collapse}; "
                  f"wavelength law (rmse with $\\lambda_c$ / with one $\\lambda$): {law:.2f}\n"
                  f"fitted diffraction amplitude ~ $\\lambda^{{-n}}$, n = {n} (4 on a spectrally flat surface)")
     return fig

@@ -16,6 +16,7 @@ import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from brdfcl._words import count
 from brdfcl.model.compose import Model
 from brdfcl.optim.selection import PENALTY
 from brdfcl.report.files import writing
@@ -133,7 +134,7 @@ def comparison_page(entries, title, rep) -> str:
     heads = ["", "material"] + (["verdict"] if analysed else []) + (["form"] if formed else []) + metrics \
         + list(groups) + ["status", "flags"]
     h = [_head(title), f"<h1>{html.escape(title)}</h1>",
-         f"<p>{len(entries)} materials. Click a column header to sort; a material's name opens its page "
+         f"<p>{count(len(entries), 'material')}. Click a column header to sort; a material's name opens its page "
          "(spheres, slices, parameters with standard errors). Thumbnails: measured | fitted under the "
          "key light. Per-channel parameters show r / g / b and sort by their mean.</p>",
          "<table class='sortable'><thead><tr>"]

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from brdfcl._words import count
 from brdfcl.data.errors import DataError
 from brdfcl.data.geometry import table_values
 from brdfcl.data.merl import MerlError
@@ -40,8 +41,8 @@ class ReportPages(Writer):
                        for i in items if i.analysis is not None]
             if not entries:
                 return None
-            title = f"brdfcl analysis of {len(entries)} materials"
-        job.log(f"report: the pages of {len(entries)} material{'s' if len(entries) != 1 else ''} "
+            title = f"brdfcl analysis of {count(len(entries), 'material')}"
+        job.log(f"report: the pages of {count(len(entries), 'material')} "
                 f"(images drawn where a fit or table changed)")
         index = write_report(job.out, entries, _read_cells, title=title, engine=job.engine)
         job.log(f"report: {index}")
