@@ -2,6 +2,9 @@
 text that says what the commands do (checked against what they do)."""
 from __future__ import annotations
 
+import subprocess
+import sys
+
 import pytest
 
 from brdfcl.app import cli
@@ -201,3 +204,20 @@ def test_counted_nouns():
 def test_synth_of_one_material_says_one(capsys, tmp_path):
     assert cli.main(["synth", str(tmp_path), "--materials", "synth-fabric"]) == 0
     assert f"wrote 1 material and truth.json to {tmp_path}\n" in capsys.readouterr().out
+
+
+def test_a_single_file_of_no_known_format_is_refused_before_any_work(tmp_path):
+    notes = tmp_path / "notes.txt"
+    notes.write_text("x")
+    r = subprocess.run([sys.executable, "-m", "brdfcl.app.cli", "fit-all", str(notes), "--out", str(tmp_path / "o")],
+                       capture_output=True, text=True)
+    assert r.returncode == 2 and r.stderr.strip().splitlines() == [
+        f"brdfcl: error: {notes}: unknown format: brdfcl reads .binary, .brdf, .csv files"]
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_mistyped_form_gets_the_nearest():
+    from brdfcl.model.compose import ModelError
+    from brdfcl.optim.forms import parse_forms
+    with pytest.raises(ModelError, match=r"unknown NDF gtx \(did you mean gtr\?\)"):
+        parse_forms("gtx:dielectric")

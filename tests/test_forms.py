@@ -32,7 +32,7 @@ def test_variants_keep_the_other_lobes_and_the_shadowing_word():
     with pytest.raises(ModelError, match="form sgd:schlick of 'diffuse\\+ggx'"):   # sgd has no Smith term
         form_variants("diffuse+ggx", ("sgd",), ())
     assert parse_forms("GGX, gtr :dielectric") == (("ggx", "gtr"), ("dielectric",))
-    with pytest.raises(ModelError, match="unknown ndf foo"):
+    with pytest.raises(ModelError, match="unknown NDF foo"):
         parse_forms("ggx,foo")
     # a list of pairs (more than one ':') against every NDF with every Fresnel
     pairs = form_keys("diffuse+diffraction+ggx", "gtr:dielectric, ABC:schlick")
@@ -99,7 +99,7 @@ def test_fit_all_records_the_chosen_form(demo_db, tmp_path):
     bad = subprocess.run([sys.executable, "-m", "brdfcl.app.cli", "fit-all", str(demo_db), "--out", str(tmp_path / "b"),
                           "--forms", "ggx,foo"], capture_output=True, text=True)
     assert bad.returncode != 0 and "Traceback" not in bad.stderr
-    assert "forms 'ggx,foo': unknown ndf foo" in bad.stderr
+    assert "forms 'ggx,foo': unknown NDF foo" in bad.stderr
     fixed = subprocess.run([sys.executable, "-m", "brdfcl.app.cli", "fit-all", str(demo_db),
                             "--out", str(tmp_path / "f"), "--forms", "gtr:dielectric,abc:schlick",
                             "--fix", "ct.F0_r=0.5"], capture_output=True, text=True)

@@ -174,7 +174,8 @@ def test_run_analyze_cluster_import_downward():
         assert "brdfcl.app.run" not in graph[m], m
 
 
-LAYERS = ("_version", "_lazy", "_cache", "data", "model", "kernels", "device", "optim", "analysis", "report", "app")
+LAYERS = ("_version", "_words", "_lazy", "_cache", "data", "model", "kernels", "device", "optim", "analysis",
+          "report", "app")
 """brdfcl's layer folders, bottom first: a module imports only from its own layer or lower ones."""
 
 

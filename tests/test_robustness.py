@@ -62,7 +62,8 @@ def test_bad_files_are_skipped_with_one_line_each(mixed_db, tmp_path):
 def test_empty_folder_bad_output_bad_model(tmp_path, demo_db):
     (tmp_path / "empty").mkdir()
     r = cli("fit-all", tmp_path / "empty", "--out", tmp_path / "o")
-    assert r.returncode == 2 and "no measurement files in this folder (.binary, .brdf, .csv)" in r.stderr
+    assert r.returncode == 2
+    assert "no measurement files in this folder (.binary, .brdf, .csv; subfolders are not searched)" in r.stderr
     assert "Traceback" not in r.stderr and len(r.stderr.strip().splitlines()) == 1
     (tmp_path / "afile").write_text("x")
     r = cli("fit-all", demo_db, "--out", tmp_path / "afile" / "sub")

@@ -27,6 +27,7 @@ from typing import Any, TypeVar
 
 from tqdm import tqdm
 
+from brdfcl._words import count
 from brdfcl.data.errors import DataError
 from brdfcl.data.inputs import check_output_dir, check_output_not_input, database_paths
 from brdfcl.data.measurement import Measurement
@@ -244,7 +245,7 @@ class Runner:
         def skip(m: Measurement, e: Exception) -> None:
             self.skip(m.path or m.name, e)
         bands = part[0].n_channels if part else 0
-        self.log(f"batch of {len(part)} material{'s' * (len(part) != 1)} ({bands} channels)")
+        self.log(f"batch of {count(len(part), 'material')} ({count(bands, 'channel')})")
         if isinstance(fitter, FormFitter):
             return fitter.fit(part, on_result=on_result, log=self.log, on_error=skip)
         return [(r, None) for r in fitter.fit(part, on_result=lambda r: on_result(r, None), log=self.log,

@@ -25,6 +25,7 @@ import os
 import numpy as np
 
 from brdfcl._version import __version__
+from brdfcl._words import noun
 
 from .errors import DataError, parse_numbers, parse_rows, read_text
 from .samples import RGB_WAVELENGTHS_UM, Channel, Samples, make_samples
@@ -62,8 +63,9 @@ def read_cornell(path: str | os.PathLike[str]) -> Samples:
         wl_lines += [k] * len(take)
         if len(wls) == count:
             if len(take) < len(fields):
+                extra = len(fields) - len(take)
                 raise DataError(path, f"the header announces {count} wavelengths but the list does not end "
-                                      f"there: {len(fields) - len(take)} more numbers follow on this line "
+                                      f"there: {extra} more {noun(extra, 'number')} on this line "
                                       "(the count and the list disagree)", k)
             body = j + 1
             break

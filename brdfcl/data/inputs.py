@@ -10,8 +10,9 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+from brdfcl.data.errors import DataError
 from brdfcl.data.merl import MerlError
-from brdfcl.data.readers import READERS, find_measurements
+from brdfcl.data.readers import READERS, find_measurements, reader_for
 
 
 class InputOverwriteError(ValueError):
@@ -23,14 +24,16 @@ def database_paths(source) -> list[str]:
     file, or a list of files."""
     if isinstance(source, (str, os.PathLike)):
         if os.path.isfile(source):
+            if reader_for(source) is None:
+                raise DataError(source, f"unknown format: brdfcl reads {', '.join(sorted(READERS))} files")
             return [os.fspath(source)]
         if not os.path.isdir(source):
             raise MerlError(f"{os.fspath(source)}: not a folder" if os.path.exists(source)
                             else f"{os.fspath(source)}: no such file or folder")
         found = [os.fspath(p) for p in find_measurements(source)]
         if not found:
-            raise MerlError(f"{os.fspath(source)}: no measurement files in this folder "
-                            f"({', '.join(sorted(READERS))})")
+            raise MerlError(f"{os.fspath(source)}: no measurement files in this folder ({', '.join(sorted(READERS))}; "
+                            f"subfolders are not searched)")
         return found
     return [os.fspath(p) for p in source]
 

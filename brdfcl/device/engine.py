@@ -15,6 +15,7 @@ import time
 import numpy as np
 import pyopencl as cl
 
+from brdfcl._words import count
 from brdfcl.data.geometry import DEFAULT_CUTOFF_DEG, TABLE, table_geometry
 from brdfcl.data.measurement import Layout
 from brdfcl.device import buildlog, selftest, width
@@ -150,8 +151,8 @@ class Engine:
         """A cell set of one shared Place ((n_mat, C, n) data) or one per material ([(C, n_i)])."""
         bad = [n for n, v in zip(names, data) if v.shape[0] != self.model.n_channels]
         if bad:
-            raise ValueError(f"{bad[0]}: {data[list(names).index(bad[0])].shape[0]} channels, but the model "
-                             f"has {self.model.n_channels}")
+            raise ValueError(f"{bad[0]}: {count(data[list(names).index(bad[0])].shape[0], 'channel')}, but the "
+                             f"model has {self.model.n_channels}")
         return build_cellset(self.ctx, names, places, data, self.dtype, pad_to=max(16, self.opt.vw),
                              cutoff_deg=cutoff_deg, max_alloc=max_alloc)
 
@@ -175,11 +176,11 @@ class Engine:
             bufs = []
             n_vec = cs.n_cells // self.opt.vw
             ng = max(1, -(-n_vec // self.opt.chunk))
-            for first, count, dbuf in cs.blocks:
+            for first, n_block, dbuf in cs.blocks:
                 tbuf = cl.Buffer(self.ctx, cl.mem_flags.READ_WRITE, dbuf.size)
                 mat = cl.Buffer(self.ctx, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
-                                hostbuf=np.arange(count, dtype=np.int32))
-                self._kernels["target"](self.queue, (count, ng * self.opt.local), (1, self.opt.local),
+                                hostbuf=np.arange(n_block, dtype=np.int32))
+                self._kernels["target"](self.queue, (n_block, ng * self.opt.local), (1, self.opt.local),
                                         cs.geom_buf, np.int32(cs.n_cells), np.int32(cs.geo_stride),
                                         np.int32(first), dbuf, dbuf, mat, tbuf)
                 bufs.append(tbuf)
@@ -197,8 +198,8 @@ class Engine:
         kern = self._kernels[kname]
         mf = cl.mem_flags
         data = [b for _, _, b in cs.blocks] if kname == "errors" else self._targets(cs)
-        for (first, count, _), dbuf in zip(cs.blocks, data):
-            sel = np.flatnonzero((mats >= first) & (mats < first + count))
+        for (first, n_block, _), dbuf in zip(cs.blocks, data):
+            sel = np.flatnonzero((mats >= first) & (mats < first + n_block))
             if sel.size == 0:
                 continue
             prm = cl.Buffer(self.ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=np.ascontiguousarray(prm_all[sel]))

@@ -21,6 +21,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from brdfcl._words import count
 from brdfcl.data.geometry import coarse_cells
 from brdfcl.data.measurement import Measurement
 from brdfcl.device.engine import Engine, Place, extract, read_values, select_cells
@@ -114,7 +115,7 @@ class Fitter:
         ms = list(measurements)
         bad = [m for m in ms if m.n_channels != self.model.n_channels]
         if bad:
-            raise ValueError(f"{bad[0].path or bad[0].name}: {bad[0].n_channels} channels, but the model has "
+            raise ValueError(f"{bad[0].path or bad[0].name}: {count(bad[0].n_channels, 'channel')}, but the model has "
                              f"{self.model.n_channels}")
         dense = bool(ms) and all(m.layout.dense for m in ms)
         shared = bool(ms) and all(m.layout is ms[0].layout for m in ms)

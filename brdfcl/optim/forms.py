@@ -17,6 +17,7 @@ default needs so that no development proxy is fitted worse than by the published
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import re
 import time
 from collections.abc import Callable, Sequence
@@ -45,7 +46,10 @@ def parse_forms(text: str) -> tuple[tuple[str, ...], tuple[str, ...]]:
     for words, kind in ((ndfs, "ndf"), (fresnels, "fresnel")):
         bad = [w for w in words if w not in REGISTRY[kind]]
         if bad:
-            raise ModelError(f"forms '{text}': unknown {kind} {', '.join(bad)}; valid: {', '.join(REGISTRY[kind])}")
+            close = difflib.get_close_matches(bad[0], list(REGISTRY[kind]), n=1)
+            hint = f" (did you mean {close[0]}?)" if close else ""
+            raise ModelError(f"forms '{text}': unknown {kind.upper() if kind == 'ndf' else kind} {', '.join(bad)}"
+                             f"{hint}; valid: {', '.join(REGISTRY[kind])}")
     return ndfs, fresnels
 
 

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from brdfcl._words import count
 from brdfcl.model.compose import Model
 from brdfcl.optim.lm import LMRun, LMState, levenberg_marquardt
 from brdfcl.optim.objective import Objective, Target
@@ -123,7 +124,7 @@ def revive(objective: Objective, target: Target, held: StageResult, *, options: 
     if not starts:                  # probes=0
         return out
     mats = held.mat[np.array(owner, dtype=int)]
-    log(f"local: {len(held.mat)} materials with a lobe at zero amplitude, {len(starts)} probes")
+    log(f"local: {count(len(held.mat), 'material')} with a lobe at zero amplitude, {count(len(starts), 'probe')}")
     st = levenberg_marquardt(_JTJ(objective, target, mats), sp.to_y(np.array(starts)), *sp.y_bounds,
                              options.lm, floor=noise_floor(objective, target, mats))
     xs = sp.from_y(st.x)
