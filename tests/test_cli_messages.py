@@ -73,9 +73,11 @@ def test_help_keeps_its_usage_block(capsys):
 
 
 def test_database_or_demo(capsys, tmp_path):
+    from brdfcl.data.readers import formats_text
     assert usage_error(capsys, "fit-all", "--out", tmp_path / "o") == (
-        "brdfcl fit-all: error: give a database folder (of MERL .binary, Cornell .brdf or .csv files) or --demo "
+        f"brdfcl fit-all: error: give a database folder (of {formats_text('or')}) or --demo "
         "(see brdfcl fit-all --help)")
+    assert "MERL .binary tables" in formats_text() and "Cornell .brdf samples" in formats_text()
     assert usage_error(capsys, "analyze", tmp_path, "--demo", "--out", tmp_path / "o") == (
         f"brdfcl analyze: error: a database folder ({tmp_path}) and --demo: give one of them "
         "(see brdfcl analyze --help)")
@@ -207,12 +209,13 @@ def test_synth_of_one_material_says_one(capsys, tmp_path):
 
 
 def test_a_single_file_of_no_known_format_is_refused_before_any_work(tmp_path):
+    from brdfcl.data.readers import READERS
     notes = tmp_path / "notes.txt"
     notes.write_text("x")
     r = subprocess.run([sys.executable, "-m", "brdfcl.app.cli", "fit-all", str(notes), "--out", str(tmp_path / "o")],
                        capture_output=True, text=True)
     assert r.returncode == 2 and r.stderr.strip().splitlines() == [
-        f"brdfcl: error: {notes}: unknown format: brdfcl reads .binary, .brdf, .csv files"]
+        f"brdfcl: error: {notes}: unknown format: brdfcl reads {', '.join(sorted(READERS))} files"]
     assert not (tmp_path / "o").exists()
 
 

@@ -10,6 +10,7 @@ import pytest
 
 from brdfcl.app.run import fit_all
 from brdfcl.data.merl import FILE_SIZE, HEADER, N_CELLS, MerlError, read_merl, write_merl
+from brdfcl.data.readers import READERS
 from brdfcl.model.compose import Model, ModelError
 
 CLI = [sys.executable, "-m", "brdfcl.app.cli"]
@@ -63,7 +64,8 @@ def test_empty_folder_bad_output_bad_model(tmp_path, demo_db):
     (tmp_path / "empty").mkdir()
     r = cli("fit-all", tmp_path / "empty", "--out", tmp_path / "o")
     assert r.returncode == 2
-    assert "no measurement files in this folder (.binary, .brdf, .csv; subfolders are not searched)" in r.stderr
+    formats = ", ".join(sorted(READERS))
+    assert f"no measurement files in this folder ({formats}; subfolders are not searched)" in r.stderr
     assert "Traceback" not in r.stderr and len(r.stderr.strip().splitlines()) == 1
     (tmp_path / "afile").write_text("x")
     r = cli("fit-all", demo_db, "--out", tmp_path / "afile" / "sub")

@@ -15,6 +15,8 @@ from collections.abc import Callable
 from dataclasses import fields, replace
 from typing import Any
 
+from brdfcl.data.readers import formats_text
+
 NO_CUTOFF_DEG = 90.0    # --cutoff at or beyond the horizon: no cutoff (FitOptions.cutoff_deg None)
 
 
@@ -107,8 +109,7 @@ def add_database_arguments(p: argparse.ArgumentParser, verb: str, out_help: str,
     ``job``: the function the command runs (brdfcl.app.run.fit_all, brdfcl.app.analyze.analyze), whose
     defaults the other flags take; ``model_help``: see `add_fit_arguments`."""
     p.add_argument("database", nargs="?", default=None,
-                   help="folder of measurements (MERL .binary tables, Cornell .brdf or .csv samples; not its "
-                        "subfolders) or one such file")
+                   help=f"folder of measurements ({formats_text('or')}; not its subfolders) or one such file")
     p.add_argument("--demo", action="store_true", help=f"{verb} the embedded demo database")
     p.add_argument("--out", required=True, help=out_help)
     add_fit_arguments(p, model_help)

@@ -22,6 +22,7 @@ import textwrap
 from brdfcl._version import __version__
 from brdfcl._words import count, noun
 from brdfcl.app.arguments import UsageError, add_database_arguments, default_of, fit_options
+from brdfcl.data.readers import formats_text
 
 # fit_options and UsageError are this module's too (tests and scripts import them from here)
 __all__ = ["UsageError", "build_parser", "fit_options", "main"]
@@ -29,11 +30,11 @@ MESSAGE_CHARS = 400                 # a longer error line is cut in its middle (
 NUMBER = re.compile(r"^-\d+$|^-\d*\.\d+")     # a negative number is a value, not an option
 
 # What `brdfcl --help` says (the developer notes are this module's docstring)
-DESCRIPTION = """\
+DESCRIPTION = f"""\
 brdfcl fits analytic BRDF models (diffuse, diffraction and Cook-Torrance reflection lobes) to
 measured BRDF databases with OpenCL, on the CPU by default or on any OpenCL device. It reads
-MERL .binary tables and Cornell .brdf and .csv sample files, writes each material's fit
-(NAME.json), a summary table and an HTML report, and tests which materials show diffraction."""
+{formats_text()}, writes each material's fit (NAME.json), a summary table and an HTML
+report, and tests which materials show diffraction."""
 EXAMPLES = """\
 examples:
   brdfcl synth merl/                     write a synthetic database to try
@@ -251,7 +252,7 @@ def _database_job(args):
     if args.demo and args.database is not None:
         raise UsageError(f"a database folder ({args.database}) and --demo: give one of them")
     if not args.demo and args.database is None:
-        raise UsageError("give a database folder (of MERL .binary, Cornell .brdf or .csv files) or --demo")
+        raise UsageError(f"give a database folder (of {formats_text('or')}) or --demo")
     if args.database is not None and not os.path.exists(args.database):
         raise UsageError(f"{args.database}: no such folder or file")
     source = demo_dir() if args.demo else args.database
@@ -427,10 +428,9 @@ def build_parser():
     p.set_defaults(func=cmd_synth)
 
     default_fit = default_fit_text(FitOptions().model, DEFAULT_FORMS)
-    p = sub.add_parser("fit-all", help="fit every measurement of a folder: MERL .binary, Cornell .brdf, .csv "
-                                       "samples (or --demo)",
-                       description="Fit an analytic BRDF model to every measurement of a database folder: MERL "
-                                   ".binary tables, Cornell .brdf and .csv sample files (in the folder itself, not "
+    p = sub.add_parser("fit-all", help=f"fit every measurement of a folder: {formats_text()} (or --demo)",
+                       description=f"Fit an analytic BRDF model to every measurement of a database folder: "
+                                   f"{formats_text()} (in the folder itself, not "
                                    f"its subfolders), or to one such file, or to the demo database (--demo). "
                                    f"Without --model, {default_fit}. Writes OUT/NAME.json per material "
                                    "(parameters, errors, options), OUT/summary.csv and the report "
@@ -469,8 +469,8 @@ def build_parser():
 
     p = sub.add_parser("analyze", help="test which materials show diffraction: gradient test, wavelength check, "
                                        "lobe comparison",
-                       description="Test every material of a database folder (MERL .binary tables, Cornell .brdf "
-                                   "and .csv sample files) or of the demo database (--demo) for diffraction: the "
+                       description=f"Test every material of a database folder ({formats_text()}) "
+                                   "or of the demo database (--demo) for diffraction: the "
                                    "gradient test (tables only), the wavelength check and the lobe comparison "
                                    "(the model fitted with and without its diffraction and its reflection lobe). "
                                    "Writes each material's verdict and test results to OUT/analysis.csv, with "

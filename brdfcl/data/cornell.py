@@ -81,6 +81,9 @@ def read_cornell(path: str | os.PathLike[str]) -> Samples:
     return make_samples(path, a[:, 0], a[:, 1], a[:, 2], a[:, 3], a[:, 4:], channels, lines=where)
 
 
+read_cornell.format_name = "Cornell {} samples"  # type: ignore[attr-defined]
+
+
 def _channels(path: str | os.PathLike[str], wls_nm: list[float], lines: list[int]) -> tuple[Channel, ...]:
     lo, hi = WAVELENGTH_RANGE_NM
     seen: set[float] = set()

@@ -58,6 +58,9 @@ def read_csv(path: str | os.PathLike[str]) -> Samples:
     return make_samples(path, ti, pi_, to, po, a[:, 4:], channels, lines=where)
 
 
+read_csv.format_name = "{} samples"  # type: ignore[attr-defined]
+
+
 def write_csv(samples: Samples, path: str | os.PathLike[str], *, radians: bool = False) -> None:
     """Write samples in the format above (degrees, or radians with ``[rad]`` headers); values
     are written with Python's shortest round-trip repr, so radians round trip exactly."""

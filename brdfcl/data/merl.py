@@ -102,6 +102,9 @@ def open_merl(path) -> MerlFile:
     return MerlFile(path)
 
 
+open_merl.format_name = "MERL {} tables"  # type: ignore[attr-defined]
+
+
 def material_name(path) -> str:
     return Path(path).name[: -len(".binary")] if str(path).endswith(".binary") else Path(path).stem
 

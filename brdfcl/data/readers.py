@@ -3,7 +3,8 @@
 
 To add a format, map its suffix (lower case, with the dot) to a callable taking the path and
 returning a ``Measurement`` (brdfcl.data.measurement); a ``DataError`` with one line naming the
-file is its way to refuse a malformed file::
+file is its way to refuse a malformed file.  The reader's ``format_name`` (``"Cornell {}
+samples"``, the suffix in the braces) is how the command line names the format::
 
     READERS[".brdf"] = read_cornell
 
@@ -29,6 +30,13 @@ READERS: dict[str, Reader] = {
     ".csv": read_csv,
 }
 """Suffix -> reader.  The hook for more formats: add an entry."""
+
+
+def formats_text(last: str = "and") -> str:
+    """The formats READERS reads, for a user: ``MERL .binary tables, Cornell .brdf samples and .csv
+    samples``."""
+    names = [getattr(READERS[s], "format_name", "{} files").format(s) for s in sorted(READERS)]
+    return names[0] if len(names) == 1 else f"{', '.join(names[:-1])} {last} {names[-1]}"
 
 
 def reader_for(path: str | os.PathLike[str]) -> Reader | None:
