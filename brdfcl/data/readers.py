@@ -16,6 +16,7 @@ import os
 from collections.abc import Callable
 from pathlib import Path
 
+from .alta import read_alta
 from .cornell import read_cornell
 from .csvsamples import read_csv
 from .errors import DataError
@@ -25,6 +26,7 @@ from .merl import open_merl
 Reader = Callable[[Path], Measurement]
 
 READERS: dict[str, Reader] = {
+    ".alta": read_alta,
     ".binary": open_merl,
     ".brdf": read_cornell,
     ".csv": read_csv,
