@@ -7,11 +7,12 @@ import pytest
 from scipy.optimize import lsq_linear
 
 from brdfcl.optim.lm import LMOptions, LMRun, levenberg_marquardt
+from brdfcl.optim.status import Status
 
-FLAT = "converged (predicted decrease below ftol)"
-FTOL = "converged (ftol)"
-STUCK = "converged (no further decrease)"
-LIMIT = "iteration limit"
+FLAT = Status.PREDICTED_FTOL
+FTOL = Status.FTOL
+STUCK = Status.NO_DECREASE
+LIMIT = Status.ITERATION_LIMIT
 
 
 def linear(A, b):
@@ -92,7 +93,7 @@ def test_rosenbrock_converges_to_one_one():
                              LMOptions(max_iter=200))
     np.testing.assert_allclose(st.x[0], [1.0, 1.0], atol=1e-8)
     assert st.loss[0] < 1e-16
-    assert st.status[0].startswith("converged"), st.status
+    assert st.status[0].converged, st.status
     assert st.iters[0] < 100
 
 
@@ -121,7 +122,7 @@ def test_bounded_linear_matches_bvls():
     np.testing.assert_array_equal(x[bound], ref.x[bound])        # on the bound, not near it
     g = A.T @ (A @ x - b)
     assert projected_gradient_optimal(g, x, lo, hi, 1e-8 * np.abs(A.T @ b).max())
-    assert st.status[0].startswith("converged")
+    assert st.status[0].converged
 
 
 def test_rosenbrock_with_optimum_on_upper_bound():
@@ -136,7 +137,7 @@ def test_rosenbrock_with_optimum_on_upper_bound():
     g = J.T @ r
     assert g[0] < -0.1                                           # held by the bound
     assert projected_gradient_optimal(g, x, lo, hi, 1e-8)
-    assert st.status[0].startswith("converged")
+    assert st.status[0].converged
 
 
 def test_start_outside_box_is_clipped():
@@ -218,7 +219,7 @@ def test_nonfinite_trial_loss_is_rejected():
     assert np.isfinite(st.x).all() and np.isfinite(st.loss).all()
     assert 0.999 < st.x[0, 0] <= 1.0
     assert st.loss[0] == loss_at(res, st.x[0])
-    assert st.status[0] != "running"
+    assert st.status[0] != Status.RUNNING
 
 
 def test_nonfinite_gradient_is_rejected():
@@ -237,7 +238,7 @@ def test_nonfinite_start_gives_inf_not_nan():
     lo, hi = np.array([-1.0]), np.array([1.0])
     st = levenberg_marquardt(Batch([bad, good]), np.array([[0.5], [0.5]]), lo, hi)
     assert st.loss[0] == np.inf and not np.isnan(st.x).any()
-    assert st.status[0] != "running"
+    assert st.status[0] != Status.RUNNING
     assert st.x[1, 0] == pytest.approx(0.25, abs=1e-10)
 
 
@@ -404,9 +405,21 @@ def test_a_row_at_its_floor_stops_converged_while_the_others_run():
     start = loss_at(rosenbrock, x0[0])
     b = Batch(res, lo, hi)
     st = levenberg_marquardt(b, x0, lo, hi, LMOptions(), floor=np.array([2 * start, 0.0]))
-    assert st.status[0] == "converged (at the noise floor)" and st.iters[0] == 0
+    assert st.status[0] == Status.NOISE_FLOOR and st.iters[0] == 0
     np.testing.assert_array_equal(st.x[0], x0[0])
-    assert st.status[1].startswith("converged") and st.loss[1] < 1e-10
+    assert st.status[1].converged and st.loss[1] < 1e-10
     free = levenberg_marquardt(Batch(res, lo, hi), x0, lo, hi, LMOptions())
-    assert free.iters[0] > 0 and free.status[0] != "converged (at the noise floor)"
+    assert free.iters[0] > 0 and free.status[0] != Status.NOISE_FLOOR
     np.testing.assert_array_equal(st.x[1], free.x[1])
+
+
+def test_statuses_are_codes_with_messages():
+    """As scipy.optimize: > 0 converged, 0 the iteration limit, < 0 no refined fit; each code's
+    message, with a stage's note after it."""
+    from brdfcl.optim.status import MESSAGES, message
+    assert set(MESSAGES) == set(Status)
+    assert [s for s in Status if s.converged] == [Status.FTOL, Status.PREDICTED_FTOL, Status.NOISE_FLOOR,
+                                                  Status.NO_DECREASE, Status.SETTLED]
+    assert not Status.ITERATION_LIMIT.converged and Status.ITERATION_LIMIT == 0
+    assert message(Status.FTOL, "after reviving a lobe") == "converged (ftol); after reviving a lobe"
+    assert Status.NOISE_FLOOR.text == "converged (at the noise floor)"

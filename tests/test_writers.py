@@ -29,7 +29,7 @@ def stand_in(spec, params=None):
     values = demo_values(m, params or {})
     errors = {"rmse_log": 0.01, "rmse_l2": 0.02, "rmse_cbrt": 0.03, "rel_rmse": 0.04}
     return SimpleNamespace(name=NAME, model=m.spec, metric="log", params=m.as_dict(values), success=True,
-                           status="converged (stand-in)", loss=1e-4, errors=errors, seconds=1.0, nfev=10,
+                           status=1, message="converged (stand-in)", loss=1e-4, errors=errors, seconds=1.0, nfev=10,
                            history=[(1.0, "local", 0.01)], bounds_hit=[], stages={"total": 1.0},
                            uncertainty=None, albedo=None, flags=[])
 

@@ -21,7 +21,7 @@ diffuse level; the law ratio gave 5.2 (rmse_log 0.0067 against 0.0013 at 1% nois
 the same halo made with each band's wavelength.  The fitted exponent of lambda is reported, not
 used: it assumes a spectrally flat surface reflectance, which a coloured paint is not.
 
-This rule was not calibrated as the table's was (issue 16): its threshold is the comparison's
+This rule was not calibrated as the table's was (brdfcl calibrate): its threshold is the comparison's
 own (1: the wavelength law fits no better than none), and it was checked on synthetic spectral
 materials with and without diffraction (tests/test_analyze_samples.py).  The lobe comparison
 penalises a spectral lobe as its RGB counterpart (brdfcl.optim.selection counts parameters on

@@ -297,7 +297,7 @@ def cmd_fit_all(args):
           f"{len(failed)} failed, {len(report.skipped)} skipped); results in {args.out}/summary.csv"
           + (f", report {report.pages}" if report.pages else ""))
     for r in failed:
-        print(f"failed: {r.name}: {r.status}", file=sys.stderr)
+        print(f"failed: {r.name}: {r.message}", file=sys.stderr)
     for why in report.skipped.values() if args.quiet else ():     # else logged as they happened
         print(f"skipped: {why}", file=sys.stderr)
     return 0 if report.ok else 1

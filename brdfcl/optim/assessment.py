@@ -12,6 +12,7 @@ from brdfcl.model.compose import Model
 from brdfcl.optim.albedo import ALBEDO_LIMIT, ALBEDO_THETA_DEG, directional_albedo
 from brdfcl.optim.objective import Objective, Target
 from brdfcl.optim.result import StageResult
+from brdfcl.optim.status import Status
 from brdfcl.optim.uncertainty import Uncertainty, json_number, standard_errors
 
 _log = logging.getLogger("brdfcl")
@@ -26,9 +27,10 @@ def evaluate(objective: Objective, target: Target, done: StageResult) -> StageRe
     err = objective.engine.errors(target.cells, objective.spaces.values(done.x), done.mat)
     ok = np.array([bool(np.isfinite(done.fun[j]) and all(np.isfinite(e[j]) for e in err.values()))
                    for j in range(done.mat.size)], dtype=bool)
-    status = [s if good else f"failed: {s}, non-finite error" for s, good in zip(done.status, ok)]
+    status = [s if good else Status.FAILED for s, good in zip(done.status, ok)]
+    notes = [done.note(j) if good else f"after {done.row_message(j)}" for j, good in enumerate(ok)]
     return StageResult(done.x, done.fun, done.mat, done.nfev, status, ok, "errors evaluated", errors=err,
-                       bounds_hit=[bounds_hit(objective.model, x) for x in done.x])
+                       bounds_hit=[bounds_hit(objective.model, x) for x in done.x], notes=notes)
 
 
 def albedo_json(albedo_row: np.ndarray, theta_i_deg: Sequence[float] = ALBEDO_THETA_DEG) -> dict:

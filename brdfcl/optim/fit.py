@@ -33,6 +33,7 @@ from brdfcl.optim.options import GLOBAL_METHODS, FitOptions
 from brdfcl.optim.refine import NOISE_FLOOR, refine
 from brdfcl.optim.result import FitResult, StageResult
 from brdfcl.optim.search import global_search, material_seed, pick_starts
+from brdfcl.optim.status import Status
 
 __all__ = ["GLOBAL_METHODS", "FitOptions", "FitResult", "Fitter", "LMOptions", "Loaded", "StageResult", "Targets",
            "bounds_hit", "coarse_cells", "extract", "fit", "fit_samples", "fit_tables", "material_seed",
@@ -201,7 +202,7 @@ class Fitter:
             x0 = previewed.x
             local = replace(o, probe_dead_lobes=False, lm=replace(o.lm, max_iter=o.preview_final_iter))
         for step in refine(objective, t.full, x0, options=local, log=log):
-            batch.progress(step.running, step.loss)
+            batch.progress(step.running, step.loss, step.finished.mat)
             if step.finished.mat.size:
                 batch.finish(_finished_status(evaluate(objective, t.full, step.finished), previewed, step.start, o))
         return batch.results()
@@ -226,8 +227,8 @@ def _warm_start(objective: Objective, values: np.ndarray, n: int) -> StageResult
     model = objective.model
     values = np.clip(np.where(np.isfinite(values), values, model.defaults()[None, :]), model.lo, model.hi)
     x = np.clip(objective.spaces.to_x(values), *objective.spaces.x_bounds)
-    return StageResult(x, np.full(n, np.inf), np.arange(n), np.zeros(n, dtype=int), ["warm start"] * n,
-                       np.ones(n, dtype=bool), "warm start")
+    return StageResult(x, np.full(n, np.inf), np.arange(n), np.zeros(n, dtype=int), [Status.START] * n,
+                       np.ones(n, dtype=bool), "warm start", notes=["warm start"] * n)
 
 
 SETTLED = 1e-3           # the full-table iterations lowered the loss by less than this, relative
@@ -242,12 +243,15 @@ def _finished_status(done: StageResult, previewed: StageResult | None, before: n
     if previewed is None:
         return done
     for j, i in enumerate(done.mat):
-        if done.status[j] != "iteration limit" or not previewed.status[i].startswith("converged"):
+        if done.status[j] != Status.ITERATION_LIMIT or not Status(previewed.status[i]).converged:
             continue
         gain = (before[i] - done.fun[j]) / max(before[i], 1e-300)
         if gain < SETTLED or done.errors["rmse_log"][j] < NOISE_FLOOR:
-            done.status[j] = (f"converged (on 1 in {o.preview_stride} cells; the {o.preview_final_iter} "
-                              f"full-table iterations of the multi-resolution stage changed the loss by {gain:.1e})")
+            done.status[j] = Status.SETTLED
+            if not done.notes:
+                done.notes = [""] * done.mat.size
+            done.notes[j] = (f"1 cell in {o.preview_stride}; the {o.preview_final_iter} full-table iterations "
+                             f"changed the loss by {gain:.1e}")
     return done
 
 
@@ -260,12 +264,18 @@ def _converged(steps, n: int) -> StageResult:
     x = np.concatenate([r.x for r in rows])
     return StageResult(x, np.concatenate([r.fun for r in rows]), np.arange(n),
                        np.array([int(r.nfev[r.mat[0]]) for r in rows]), [r.status[0] for r in rows],
-                       np.concatenate([r.success for r in rows]), "Levenberg-Marquardt on the preview cells")
+                       np.concatenate([r.success for r in rows]), "Levenberg-Marquardt on the preview cells",
+                       notes=[r.note(0) for r in rows])
 
 
 class _Batch:
-    """The bookkeeping of one `Fitter.fit`: clock, each material's history and evaluations, and the
-    results, handed to ``on_result`` as materials finish."""
+    """The bookkeeping of one `Fitter.fit`: clock, each material's history, evaluations and share of
+    the wall time, and the results, handed to ``on_result`` as materials finish.
+
+    A launch serves every material in it, so a material's time is its share: each interval split
+    evenly among the materials being fitted then (all of them until the local stage, the running
+    ones during it, the assessed ones for their assessment); the shares of a batch sum to its wall
+    time."""
 
     def __init__(self, fitter: Fitter, names: list[str], data: np.ndarray, target: Target,
                  on_result: Callable[[FitResult], None] | None, t0: float):
@@ -275,6 +285,17 @@ class _Batch:
         self.done: list[FitResult | None] = [None] * len(names)
         self.global_nfev = np.zeros(len(names), dtype=int)
         self.t_global = self.t_assess = 0.0
+        self.share = np.zeros(len(names))
+        self.mark = 0.0
+
+    def spend(self, mats) -> float:
+        """Split the time since the last mark among ``mats``; the time now."""
+        t = self.now()
+        mats = np.asarray(mats, dtype=int)
+        if mats.size:
+            self.share[mats] += (t - self.mark) / mats.size
+        self.mark = t
+        return t
 
     def now(self) -> float:
         return time.perf_counter() - self.t0
@@ -282,17 +303,19 @@ class _Batch:
     def started(self, found: StageResult, loss: np.ndarray) -> None:
         """The global stage is over: ``found`` its result, ``loss`` the starts' (on the preview cells:
         weighted to estimate the full table's)."""
-        self.t_global = self.now()
+        self.t_global = self.spend(np.arange(len(self.names)))
         self.global_nfev = found.nfev
         for i, h in enumerate(self.history):
             h.append((self.t_global, "global", float(np.sqrt(loss[i] / self.target.scale[i]))))
 
     def previewed(self, done: StageResult) -> None:
         """The preview pass is over: its evaluations count with the global stage's."""
+        self.spend(np.arange(len(self.names)))
         self.global_nfev = self.global_nfev + done.nfev
 
-    def progress(self, running: np.ndarray, loss: np.ndarray) -> None:
-        t = self.now()
+    def progress(self, running: np.ndarray, loss: np.ndarray, finished: np.ndarray) -> None:
+        """A step of the local stage: ``running`` still, ``finished`` now."""
+        t = self.spend(np.union1d(running, finished))
         for i in running:
             self.history[i].append((t, "local", float(np.sqrt(loss[i] / self.target.scale[i]))))
 
@@ -306,12 +329,15 @@ class _Batch:
             ta = time.perf_counter()
             judged = assess(f.objective, self.target, data=self.data, values=v, rows=done.mat, at_bound=done.bounds_hit)
             self.t_assess += time.perf_counter() - ta
+            self.spend(done.mat)
         for j, i in enumerate(done.mat):
             self.history[i].append((t, "local", float(np.sqrt(done.fun[j] / self.target.scale[i]))))
             res = FitResult(name=self.names[i], model=f.model.spec, metric=f.opts.metric,
-                            params=f.model.as_dict(v[j]), success=bool(done.success[j]), status=done.status[j],
+                            params=f.model.as_dict(v[j]), success=bool(done.success[j]),
+                            status=int(done.status[j]), message=done.row_message(j),
                             loss=float(done.fun[j]), errors={k: float(e[j]) for k, e in done.errors.items()},
-                            seconds=t, nfev=int(self.global_nfev[i] + done.nfev[i]), history=self.history[i],
+                            seconds=float(self.share[i]), nfev=int(self.global_nfev[i] + done.nfev[i]),
+                            history=self.history[i],
                             bounds_hit=done.bounds_hit[j], stages={"global": self.t_global},
                             lambdas=self.fitter.lambdas, **judged[j])
             self.done[i] = res

@@ -274,7 +274,6 @@ class FormFitter:
     def _choose(self, upload: Callable, on_result, log) -> list[tuple[FitResult, dict]]:
         """``upload(fitter)``: (names, targets, data) of the batch on that fitter's engine, made once
         for the forms whose engines can read the same buffers (`same_cells`)."""
-        t0 = time.perf_counter()
         n = -1
         fitted: dict[str, list[FitResult]] = {}
         uploaded: dict[str, tuple] = {}
@@ -312,17 +311,18 @@ class FormFitter:
         for i, key in enumerate(chosen):
             # the choice took every form's fit: its time and evaluations are the material's
             r = fitted[key][i]
-            out.append((dataclasses.replace(r, seconds=time.perf_counter() - t0,
+            out.append((dataclasses.replace(r, seconds=sum(fitted[k][i].seconds for k in self.forms) + judged[i][2],
                                             nfev=sum(fitted[k][i].nfev for k in self.forms),
                                             stages={**r.stages, **judged[i][1]}, **judged[i][0]), records[i]))
             if on_result is not None:
                 on_result(*out[-1])
         return out
 
-    def _assess(self, chosen: list[str], fitted: dict, uploaded: dict) -> list[tuple[dict, dict]]:
-        """({uncertainty, albedo, flags}, {"uncertainty": seconds}) per material: each chosen fit
-        assessed on its form's cells, one launch per form ({}, {}: the fitters do not assess)."""
-        out: list[tuple[dict, dict]] = [({}, {})] * len(chosen)
+    def _assess(self, chosen: list[str], fitted: dict, uploaded: dict) -> list[tuple[dict, dict, float]]:
+        """({uncertainty, albedo, flags}, {"uncertainty": seconds}, the material's share of those
+        seconds) per material: each chosen fit assessed on its form's cells, one launch per form
+        ({}, {}, 0: the fitters do not assess)."""
+        out: list[tuple[dict, dict, float]] = [({}, {}, 0.0)] * len(chosen)
         for key, f in self.fitters.items():
             rows = np.array([i for i, k in enumerate(chosen) if k == key], dtype=int)
             if not f.assess_results or not rows.size:
@@ -335,5 +335,5 @@ class FormFitter:
                             at_bound=[list(r.bounds_hit) for r in res])
             seconds = {"uncertainty": time.perf_counter() - t}
             for i, j in zip(rows, judged):
-                out[i] = (j, seconds)
+                out[i] = (j, seconds, seconds["uncertainty"] / rows.size)
         return out

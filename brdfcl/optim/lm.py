@@ -15,6 +15,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from brdfcl.optim.status import Status
+
 JTJ = Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]]
 OnDone = Callable[[np.ndarray, np.ndarray, np.ndarray, list], None]
 OnIter = Callable[[int, np.ndarray, np.ndarray, np.ndarray], None]
@@ -33,7 +35,8 @@ class LMOptions:
 
 @dataclass
 class LMState:
-    """Every row's point, loss, iterations, evaluations (the start's included) and status."""
+    """Every row's point, loss, iterations, evaluations (the start's included) and status
+    (brdfcl.optim.status.Status)."""
 
     x: np.ndarray
     loss: np.ndarray
@@ -129,7 +132,7 @@ class LMRun:
         L[~np.isfinite(L)] = np.inf
         self.g = np.where(np.isfinite(g), g, 0)
         self.H = np.where(np.isfinite(H), H, 0)
-        self.state = LMState(x, L, np.zeros(n, dtype=int), np.ones(n, dtype=int), ["running"] * n)
+        self.state = LMState(x, L, np.zeros(n, dtype=int), np.ones(n, dtype=int), [Status.RUNNING] * n)
         self.running = np.ones(n, dtype=bool)
 
     def steps(self) -> Iterator[LMStep]:
@@ -151,8 +154,7 @@ class LMRun:
             floored = L[rows] <= self.floor[rows]
             flat = floored | (pred <= opts.ftol * np.maximum(L[rows], 1e-300))
             for i, at_floor in zip(rows[flat], floored[flat]):
-                status[i] = ("converged (at the noise floor)" if at_floor
-                             else "converged (predicted decrease below ftol)")
+                status[i] = Status.NOISE_FLOOR if at_floor else Status.PREDICTED_FTOL
                 running[i] = False
             if flat.any():
                 yield LMStep(it, st, running, rows[flat], False)
@@ -172,19 +174,19 @@ class LMRun:
                     lam[i] = max(lam[i] / 3, 1e-12)
                     rejects[i] = 0
                     if small[i] >= 3:
-                        status[i] = "converged (ftol)"
+                        status[i] = Status.FTOL
                 else:
                     lam[i] *= 4
                     rejects[i] += 1
                     if lam[i] > opts.lam_max or rejects[i] >= opts.max_reject:
-                        status[i] = "converged (no further decrease)"
-                if status[i] != "running":
+                        status[i] = Status.NO_DECREASE
+                if status[i] != Status.RUNNING:
                     running[i] = False
                     done.append(i)
             yield LMStep(it, st, running, np.array(done, dtype=int), True)
         last = np.flatnonzero(running)
         for i in last:
-            status[i] = "iteration limit"
+            status[i] = Status.ITERATION_LIMIT
         running[last] = False
         if last.size:
             yield LMStep(opts.max_iter, st, running, last, False)

@@ -120,7 +120,8 @@ def revive(objective: Objective, target: Target, held: StageResult, *, options: 
                 starts.append(xs)
                 owner.append(q)
     out = StageResult(held.x.copy(), held.fun.copy(), held.mat, np.zeros_like(held.nfev), list(held.status),
-                      held.success.copy(), "Levenberg-Marquardt, dead lobes revived")
+                      held.success.copy(), "Levenberg-Marquardt, dead lobes revived",
+                      notes=[held.note(j) for j in range(held.mat.size)])
     if not starts:                  # probes=0
         return out
     mats = held.mat[np.array(owner, dtype=int)]
@@ -131,7 +132,8 @@ def revive(objective: Objective, target: Target, held: StageResult, *, options: 
     for j, q in enumerate(owner):
         if np.isfinite(st.loss[j]) and st.loss[j] < out.fun[q]:
             out.x[q], out.fun[q] = xs[j], st.loss[j]
-            out.status[q] = st.status[j] + ", after reviving a lobe"
+            out.status[q] = st.status[j]
+            out.notes[q] = "after reviving a lobe"
             out.success[q] = True
     np.maximum.at(out.nfev, mats, st.nfev)      # a material's probes share each launch: count it once
     return out

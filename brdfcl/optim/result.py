@@ -6,6 +6,8 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
+from brdfcl.optim.status import Status, message
+
 
 @dataclass
 class StageResult:
@@ -18,18 +20,27 @@ class StageResult:
     fun: np.ndarray                 # (m,) loss of each row on the stage's cell set (inf: none found)
     mat: np.ndarray                 # (m,) material (index in the batch) of each row
     nfev: np.ndarray                # (n,) evaluations per material of the batch
-    status: list[str]               # (m,) one line per row
+    status: list[Status]            # (m,) how each row ended (brdfcl.optim.status)
     success: np.ndarray             # (m,) bool
     message: str = ""               # one line about the stage
     errors: dict[str, np.ndarray] = field(default_factory=dict)   # error evaluation: (m,) per name
     bounds_hit: list[list[str]] = field(default_factory=list)     # error evaluation: names per row
+    notes: list[str] = field(default_factory=list)                # (m,) what a stage adds to a row's message
+
+    def note(self, j: int) -> str:
+        return self.notes[j] if self.notes else ""
+
+    def row_message(self, j: int) -> str:
+        """Row j's status in words, with its note."""
+        return message(self.status[j], self.note(j))
 
     def rows(self, sel: np.ndarray | list[int]) -> StageResult:
         """The rows ``sel`` of this result (same nfev, message)."""
         sel = np.asarray(sel, dtype=int)
         return StageResult(self.x[sel], self.fun[sel], self.mat[sel], self.nfev, [self.status[j] for j in sel],
                            self.success[sel], self.message, {k: e[sel] for k, e in self.errors.items()},
-                           [self.bounds_hit[j] for j in sel] if self.bounds_hit else [])
+                           [self.bounds_hit[j] for j in sel] if self.bounds_hit else [],
+                           [self.note(j) for j in sel])
 
 
 @dataclass
@@ -41,10 +52,11 @@ class FitResult:
     metric: str
     params: dict                     # natural values by parameter name
     success: bool
-    status: str
+    status: int                      # brdfcl.optim.status.Status: > 0 converged, 0 the iteration limit
+    message: str                     # the status in words
     loss: float                      # sum w r^2 in the fit metric, full table
     errors: dict                     # rmse_l2, rmse_log, rmse_cbrt, rel_rmse
-    seconds: float                   # wall time until this material was finished (launches are shared)
+    seconds: float                   # its share of the batch's wall time (each launch's split among its materials)
     nfev: int                        # evaluations of this material in the search and refinement (coarse and full)
     history: list                    # [(seconds, stage, rmse in the fit metric)]
     bounds_hit: list

@@ -21,6 +21,7 @@ from brdfcl.optim.lockstep import Problem, run_lockstep
 from brdfcl.optim.objective import Objective, Target
 from brdfcl.optim.options import FitOptions
 from brdfcl.optim.result import StageResult
+from brdfcl.optim.status import Status
 
 
 def _quiet(line: str) -> None:
@@ -91,7 +92,7 @@ def global_search(objective: Objective, target: Target, *, names: list[str], opt
     nfev = np.zeros(n, dtype=int)
     if options.global_method == "none":
         return StageResult(objective.spaces.default_x(n), np.full(n, np.inf), np.arange(n), nfev,
-                           ["defaults"] * n, np.ones(n, dtype=bool), "no global search")
+                           [Status.START] * n, np.ones(n, dtype=bool), "no global search", notes=["defaults"] * n)
     if options.global_method == "lds":
         starts, n_candidates = _lds_starts(objective, target, n, options, penalty, log)
         nfev += n_candidates
@@ -106,8 +107,8 @@ def global_search(objective: Objective, target: Target, *, names: list[str], opt
     out = run_lockstep(problems, _Batched(objective, target, mats, penalty))
     np.add.at(nfev, mats, [oc.nfev for oc in out])
     return StageResult(np.array([oc.x for oc in out]), np.array([oc.f for oc in out]), mats, nfev,
-                       [oc.message for oc in out], np.array([oc.status > 0 for oc in out]),
-                       f"{options.global_method}: {len(out)} local searches")
+                       [Status.START] * len(out), np.array([oc.status > 0 for oc in out]),
+                       f"{options.global_method}: {len(out)} local searches", notes=[oc.message for oc in out])
 
 
 def pick_starts(objective: Objective, target: Target, found: StageResult, *, n_materials: int,
@@ -129,6 +130,6 @@ def pick_starts(objective: Objective, target: Target, found: StageResult, *, n_m
         if np.isfinite(li) and li < best[i]:
             best[i], x[i] = li, xi
     nfev = np.bincount(np.array(rows, dtype=int), minlength=n_materials)
-    status = ["best start" if np.isfinite(b) else "defaults (no finite start)" for b in best]
-    return StageResult(x, best, np.arange(n_materials), nfev, status, np.isfinite(best),
-                       f"best of {keep} starts per material on {target.cells.index.size} cells")
+    notes = ["best start" if np.isfinite(b) else "defaults (no finite start)" for b in best]
+    return StageResult(x, best, np.arange(n_materials), nfev, [Status.START] * n_materials, np.isfinite(best),
+                       f"best of {keep} starts per material on {target.cells.index.size} cells", notes=notes)

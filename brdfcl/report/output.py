@@ -83,7 +83,8 @@ def option_difference(recorded: dict, current: dict, prefix: str = "") -> tuple[
 
 
 def result_document(res: Any, model: Model, extra: dict | None = None, options: dict | None = None) -> dict:
-    """What NAME.json holds: model, parameters with units and bounds, errors, timings, version,
+    """What NAME.json holds: model, status (brdfcl.optim.status code) and message, parameters with
+    units and bounds, errors, timings, version,
     "uncertainty", "albedo" and "flags" (brdfcl.optim.uncertainty; null / [] when not assessed) and,
     under "options", the options that made it (recorded_options)."""
     params = {}
@@ -91,7 +92,8 @@ def result_document(res: Any, model: Model, extra: dict | None = None, options: 
         params[s.name] = {"value": res.params[s.name], "unit": s.param.unit, "lo": s.param.lo,
                           "hi": s.param.hi, "log_space": s.param.log, "fixed": s.name in model.fixed}
     doc = {"material": res.name, "model": res.model, "metric": res.metric, "success": res.success,
-           "status": res.status, "params": params, "bounds_hit": res.bounds_hit, "errors": res.errors,
+           "status": int(res.status), "message": res.message, "params": params, "bounds_hit": res.bounds_hit,
+           "errors": res.errors,
            "loss": res.loss, "seconds": res.seconds, "evaluations": res.nfev, "stages": res.stages,
            "history": [{"seconds": t, "stage": s, "rmse": e} for t, s, e in res.history],
            "wavelengths_um": list(model.lambdas), "brdfcl_version": __version__}

@@ -78,7 +78,8 @@ class Entry:
         """From a NAME.json document (brdfcl.report.output.result_document)."""
         lambdas = doc.get("wavelengths_um")
         return cls(doc["material"], doc["model"], {k: v["value"] for k, v in doc["params"].items()},
-                   doc["errors"], doc["status"], table, uncertainty=doc.get("uncertainty"),
+                   doc["errors"], str(doc.get("message", doc["status"])), table,
+                   uncertainty=doc.get("uncertainty"),
                    albedo=doc.get("albedo"), flags=list(doc.get("flags") or []),
                    lambdas=tuple(lambdas) if lambdas else None, form=doc.get("form"),
                    form_errors=doc.get("form_errors"), **kw)
@@ -87,7 +88,7 @@ class Entry:
     def from_result(cls, res, table=None, **kw):
         """From a brdfcl.optim.fit.FitResult."""
         lambdas = getattr(res, "lambdas", None)
-        return cls(res.name, res.model, dict(res.params), res.errors, res.status, table,
+        return cls(res.name, res.model, dict(res.params), res.errors, res.message, table,
                    uncertainty=getattr(res, "uncertainty", None), albedo=getattr(res, "albedo", None),
                    flags=list(getattr(res, "flags", None) or []), lambdas=tuple(lambdas) if lambdas else None, **kw)
 
@@ -155,7 +156,7 @@ def comparison_page(entries, title, rep) -> str:
             text = " / ".join(f"{v:.3g}" for v in vals) if len(vals) <= 3 else \
                 f"{min(vals):.3g} .. {max(vals):.3g} ({len(vals)} bands)"
             cells.append(_td(text, sum(vals) / len(vals) if vals else ""))
-        short = e.status.split(" (")[0]
+        short = e.status.split(" (")[0].split("; ")[0]
         status = f"<span title='{html.escape(e.status, quote=True)}'>{html.escape(short)}</span>"
         cells.append(_td(status, e.status, "l"))
         tip = html.escape("\n".join(e.flags), quote=True)

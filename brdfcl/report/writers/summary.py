@@ -35,7 +35,7 @@ def write_summary(out_dir: str | Path, cache: dict | None = None) -> Path:
         e = d["errors"]
         row = [d["material"], d["model"], d["metric"], f"{d['seconds']:.3f}", d["evaluations"],
                f"{e['rmse_log']:.6g}", f"{e['rmse_l2']:.6g}", f"{e['rmse_cbrt']:.6g}",
-               f"{e['rel_rmse']:.6g}", d["status"]]
+               f"{e['rel_rmse']:.6g}", d.get("message", d["status"])]
         row += _option_cells(d)
         row += [f"{d['params'][k]['value']:.8g}" if k in d["params"] else "" for k in pnames]
         w.writerow(row)
