@@ -10,9 +10,9 @@ import pytest
 from brdfcl.data.geometry import table_geometry
 from brdfcl.device import selftest
 from brdfcl.device.engine import Engine
-from brdfcl.model.compose import CT_NDFS, SHADOWING_ALIASES, Model
+from brdfcl.model.compose import CT_NDFS, Model
 from brdfcl.model.lobes.cells import Cells
-from brdfcl.model.terms import REGISTRY
+from brdfcl.model.terms import REGISTRY, shadowing_for
 
 
 def spec_for(kind, name):
@@ -23,10 +23,10 @@ def spec_for(kind, name):
         return f"ggx:smith:{name}"
     if kind == "psd":
         return f"diffraction:{name}:schlick"
-    for ndf in REGISTRY["shadowing"][name].ndfs or CT_NDFS:         # shadowing: its option word
-        for word, pattern in SHADOWING_ALIASES.items():
-            if pattern.format(ndf=ndf) == name:
-                return f"{ndf}:{word}:none"
+    term = REGISTRY["shadowing"][name]                             # shadowing: its family's word
+    for ndf in term.ndfs or CT_NDFS:
+        if shadowing_for(ndf, term.family) is term:
+            return f"{ndf}:{term.family}:none"
     raise AssertionError(f"no model string uses the {kind} term {name}")
 
 

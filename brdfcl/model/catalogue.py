@@ -6,7 +6,7 @@ descriptions themselves, so the documentation cannot drift from the code.
 """
 from __future__ import annotations
 
-from brdfcl.model.compose import SHADOWING_ALIASES
+from brdfcl.model.compose import SHADOWINGS
 from brdfcl.model.lobes import CookTorrance, Diffraction, Diffuse
 from brdfcl.model.terms import REGISTRY, Param, Term
 
@@ -78,7 +78,7 @@ def lobes_markdown() -> str:
         ("`diffraction`", f"PSD {_names('psd', dr.psd.name)}; Fresnel {_names('fresnel', dr.fresnel.name)}",
          f"{_params([Diffraction.amplitude])}, the PSD's ({_per_term('psd')}), the Fresnel's"),
         (", ".join(f"`{n}`" for n in REGISTRY["ndf"]) + " (Cook-Torrance)",
-         f"G {', '.join(f'`{a}`' for a in SHADOWING_ALIASES)} (default `smith` where the D has one, else "
+         f"G {', '.join(f'`{a}`' for a in SHADOWINGS)} (default `smith` where the D has one, else "
          f"`vcavity`); Fresnel {_names('fresnel', ct.fresnel.name)}",
          f"{_params([CookTorrance.amplitude])}, the D's ({_per_term('ndf')}), "
          f"the Fresnel's ({_per_term('fresnel')})"),

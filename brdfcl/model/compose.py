@@ -25,11 +25,12 @@ import numpy as np
 
 from brdfcl.model.lobes import LAMBDAS, REGISTRY, CookTorrance, Diffraction, Diffuse
 from brdfcl.model.lobes.lobe import ROLES, Lobe, Slot, channel_names
+from brdfcl.model.terms import shadowing_families
 
 DEFAULT_MODEL = "diffuse+diffraction+ggx"
 CT_NDFS = tuple(REGISTRY["ndf"])
-SHADOWING_ALIASES = {"smith": "smith_{ndf}", "smith-hc": "smith_{ndf}_hc", "vcavity": "vcavity",
-                     "none": "none"}
+SHADOWINGS = tuple(shadowing_families())
+"""The shadowing words of a model string (each term's ``family``)."""
 
 
 class ModelError(ValueError):
@@ -38,7 +39,7 @@ class ModelError(ValueError):
 
 def _valid_text():
     return (f"lobes: diffuse, diffraction[:{'|'.join(REGISTRY['psd'])}][:FRESNEL], "
-            f"{'|'.join(CT_NDFS)}[:{'|'.join(SHADOWING_ALIASES)}][:FRESNEL]; "
+            f"{'|'.join(CT_NDFS)}[:{'|'.join(SHADOWINGS)}][:FRESNEL]; "
             f"FRESNEL: {'|'.join(REGISTRY['fresnel'])}")
 
 
@@ -76,12 +77,12 @@ def parse_lobe(text: str, lambdas=LAMBDAS) -> Lobe:
     if name in CT_NDFS:
         kw = {}
         for o in opts:
-            if o in SHADOWING_ALIASES and "shadowing" not in kw:
-                kw["shadowing"] = SHADOWING_ALIASES[o].format(ndf=name)
+            if o in SHADOWINGS and "shadowing" not in kw:
+                kw["shadowing"] = o
             elif o in REGISTRY["fresnel"] and "fresnel" not in kw:
                 kw["fresnel"] = o
             else:
-                raise _bad_option(text, o, {"shadowing terms": SHADOWING_ALIASES,
+                raise _bad_option(text, o, {"shadowing terms": SHADOWINGS,
                                             "Fresnel terms": REGISTRY["fresnel"]})
         try:
             return CookTorrance(name, lambdas=lambdas, **kw)

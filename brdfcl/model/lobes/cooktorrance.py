@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 from brdfcl.model.lobes.lobe import Factor, Known, Lobe
-from brdfcl.model.terms import REGISTRY, Param
+from brdfcl.model.terms import REGISTRY, Param, shadowing_for
 
 RHO_S = Param("rho", 1e-6, 10.0, 0.5, log=True, per_channel=True, search=(1e-2, 5.0),
               doc="specular amplitude (times F; <= 1 for a physical surface)")
@@ -15,21 +15,23 @@ class CookTorrance(Lobe):
     amplitude = RHO_S
 
     def __init__(self, ndf="ggx", shadowing=None, fresnel="schlick", lambdas=None):
+        """``shadowing``: a family (``smith``, ``smith-hc``, ``vcavity``, ``none``; default ``smith``
+        where the D has one, else ``vcavity``), the term of it defined for this D."""
         if lambdas is not None:
             self.lambdas = tuple(float(x) for x in lambdas)
         self.ndf = REGISTRY["ndf"][ndf]
-        if shadowing is None:
-            shadowing = f"smith_{ndf}" if f"smith_{ndf}" in REGISTRY["shadowing"] else "vcavity"
-        self.shadowing = REGISTRY["shadowing"][shadowing]
-        if self.shadowing.ndfs and ndf not in self.shadowing.ndfs:
-            raise ValueError(f"shadowing '{shadowing}' is defined for {', '.join(self.shadowing.ndfs)} "
-                             f"only, not for '{ndf}'; use vcavity or none")
+        term = shadowing_for(ndf, shadowing) if shadowing is not None else (
+            shadowing_for(ndf, "smith") or shadowing_for(ndf, "vcavity"))
+        if term is None:
+            defined = sorted({d for t in REGISTRY["shadowing"].values() if t.family == shadowing for d in t.ndfs})
+            raise ValueError(f"shadowing '{shadowing}' is defined for {', '.join(defined)} only, not for '{ndf}'; "
+                             f"use vcavity or none")
+        self.shadowing = term
         self.fresnel = REGISTRY["fresnel"][fresnel]
         self.terms = (self.ndf, self.shadowing, self.fresnel)
 
     def spec(self):
-        g = self.shadowing.name.replace(f"_{self.ndf.name}", "").replace("_", "-")
-        return f"{self.ndf.name}:{g}:{self.fresnel.name}"
+        return f"{self.ndf.name}:{self.shadowing.family}:{self.fresnel.name}"
 
     def parts(self, ch):
         return INV_4_CI_CO, [Factor(self.ndf), Factor(self.shadowing),

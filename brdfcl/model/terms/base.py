@@ -66,6 +66,9 @@ class Term:
     doc: str = ""
     uses: tuple[str, ...] = ()      # parameters read from another term (G reads D's alpha)
     ndfs: tuple[str, ...] = ()      # shadowing: the D terms it is defined for (empty: any)
+    family: str = ""                # shadowing: the word a model string names it by (smith, smith-hc, ...)
+    sampled_as: str = ""            # ndf: the half-vector distribution that samples it exactly from its alpha
+    #                                 (ggx, beckmann; empty: a proposal fitted to its shape)
     per_channel: bool = False       # evaluated once per channel (per-channel parameters)
     host: tuple[str, ...] = ()      # constants of the inputs alone, computed on the host
     host_consts: Callable | None = None
@@ -147,5 +150,21 @@ REGISTRY: dict[str, dict[str, Term]] = {k: {} for k in KINDS}
 def register(term: Term) -> Term:
     """Make a term available to model strings, the catalogue and the tests."""
     term = replace(term, origin=term.origin or sys._getframe(1).f_globals["__name__"])
+    assert term.kind != "shadowing" or term.family, f"shadowing {term.name}: give its family"
     REGISTRY[term.kind][term.name] = term
     return term
+
+
+def shadowing_families() -> list[str]:
+    """The words a model string names a shadowing by: those of terms made for particular D terms
+    first (``smith``, ``smith-hc``), then those for any D (``none``, ``vcavity``)."""
+    terms = REGISTRY["shadowing"].values()
+    per_d = [t.family for t in terms if t.ndfs]
+    return list(dict.fromkeys(per_d + [t.family for t in terms if t.family not in per_d]))
+
+
+def shadowing_for(ndf: str, family: str) -> Term | None:
+    """The shadowing term of ``family`` for the D ``ndf``: one defined for it (``ndfs``), else one
+    defined for any D; None if the family has none for it."""
+    terms = [t for t in REGISTRY["shadowing"].values() if t.family == family]
+    return next((t for t in terms if ndf in t.ndfs), next((t for t in terms if not t.ndfs), None))

@@ -130,10 +130,9 @@ class Sampler:
         return lb.consts(self._value)
 
     def _ct_component(self, lb):
-        name = lb.ndf.name
-        if name in ("ggx", "beckmann"):
+        if lb.ndf.sampled_as:                  # the D is that distribution: sampled exactly from its alpha
             alpha = float(self._value(lb.slot_name("alpha")))
-            return Component(name, float(np.clip(alpha, *ALPHA_RANGE)), lb.prefix, None)
+            return Component(lb.ndf.sampled_as, float(np.clip(alpha, *ALPHA_RANGE)), lb.prefix, None)
         consts = self._lobe_consts(lb)
 
         def ratio(t2):

@@ -10,4 +10,5 @@ def beckmann(alpha):
     return exp(-t2 / alpha**2) / (pi * alpha**2 * ch**4)
 
 
-register(Term("ndf", "beckmann", (ALPHA,), beckmann, doc="Beckmann", cite="Walter et al. 2007, eq. 25"))
+register(Term("ndf", "beckmann", (ALPHA,), beckmann, doc="Beckmann", cite="Walter et al. 2007, eq. 25",
+              sampled_as="beckmann"))

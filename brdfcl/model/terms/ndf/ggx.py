@@ -13,5 +13,5 @@ def ggx(alpha):
     return alpha**2 / (pi * ch**4 * (alpha**2 + t2) ** 2)
 
 
-register(Term("ndf", "ggx", (ALPHA,), ggx, doc="GGX / Trowbridge-Reitz",
+register(Term("ndf", "ggx", (ALPHA,), ggx, doc="GGX / Trowbridge-Reitz", sampled_as="ggx",
               cite="Walter et al. 2007, Microfacet models for refraction, eq. 33"))

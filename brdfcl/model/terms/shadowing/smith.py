@@ -189,7 +189,9 @@ def register_series(series: SeriesLambda, ndf: str, cite: str) -> None:
     of a series Lambda, for the distribution ``ndf``."""
     from brdfcl.model.terms.base import Term, register
     doc = f"Smith for {ndf.upper()}, exact Lambda as a {SERIES_TERMS}-term series"
-    for suffix, form, kind in (("", separable, "separable"), ("_hc", correlated, "height-correlated")):
+    for suffix, form, kind, family in (("", separable, "separable", "smith"),
+                                       ("_hc", correlated, "height-correlated", "smith-hc")):
         register(Term("shadowing", f"smith_{ndf}{suffix}", (), form(series), uses=series.inputs, ndfs=(ndf,),
+                      family=family,
                       host=series.host, host_consts=series.host_consts, cite=cite, doc=f"{kind} {doc}",
                       origin=series.rule.origin))

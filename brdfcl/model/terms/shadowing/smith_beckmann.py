@@ -11,7 +11,7 @@ def lambda_beckmann(d, alpha):
     return (exp(-a**2) / (a * sqrt(pi)) - erfc(a)) / 2
 
 
-register(Term("shadowing", "smith_beckmann", (), separable(lambda_beckmann), uses=("alpha",),
+register(Term("shadowing", "smith_beckmann", (), separable(lambda_beckmann), uses=("alpha",), family="smith",
               ndfs=("beckmann",), cite=CITE, doc="separable Smith for Beckmann"))
-register(Term("shadowing", "smith_beckmann_hc", (), correlated(lambda_beckmann), uses=("alpha",),
+register(Term("shadowing", "smith_beckmann_hc", (), correlated(lambda_beckmann), uses=("alpha",), family="smith-hc",
               ndfs=("beckmann",), cite=CITE, doc="height-correlated Smith for Beckmann"))

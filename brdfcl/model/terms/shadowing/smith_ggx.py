@@ -11,7 +11,7 @@ def lambda_ggx(d, alpha):
     return u / (2 * (1 + sqrt(1 + u)))
 
 
-register(Term("shadowing", "smith_ggx", (), separable(lambda_ggx), uses=("alpha",), ndfs=("ggx",),
+register(Term("shadowing", "smith_ggx", (), separable(lambda_ggx), uses=("alpha",), ndfs=("ggx",), family="smith",
               cite=CITE, doc="separable Smith for GGX"))
 register(Term("shadowing", "smith_ggx_hc", (), correlated(lambda_ggx), uses=("alpha",), ndfs=("ggx",),
-              cite=CITE, doc="height-correlated Smith for GGX"))
+              family="smith-hc", cite=CITE, doc="height-correlated Smith for GGX"))

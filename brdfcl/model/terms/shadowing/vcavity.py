@@ -3,4 +3,5 @@ parameter free, for any D; a per-cell quantity (``gv``) computed once per cell."
 from brdfcl.model.terms.base import Term, register
 from brdfcl.model.terms.symbols import gv
 
-register(Term("shadowing", "vcavity", (), lambda: gv, cite="Cook & Torrance 1982", doc="V-cavity, any D"))
+register(Term("shadowing", "vcavity", (), lambda: gv, family="vcavity", cite="Cook & Torrance 1982",
+              doc="V-cavity, any D"))
