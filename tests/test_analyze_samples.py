@@ -71,6 +71,7 @@ def test_the_verdicts_of_known_materials(analysed):
     assert all(a.row()["verdict_by"] for a in res.values())
 
 
+@pytest.mark.slow
 def test_the_diffracting_fit_recovers_its_parameters(analysed):
     res, _ = analysed
     p = res["diffracting"].fits["full"].params
@@ -80,6 +81,7 @@ def test_the_diffracting_fit_recovers_its_parameters(analysed):
         assert p[f"diffraction.rho_{c}"] == pytest.approx(0.04, rel=0.05)
 
 
+@pytest.mark.slow
 def test_the_report_says_what_was_run(analysed):
     _, out = analysed
     rows = {r["material"]: r for r in csv.DictReader((out / "analysis.csv").open())}
@@ -110,3 +112,22 @@ def test_krylon_is_analysed(krylon, tmp_path):
     assert a.spectral.n_wide > 1000 and len(a.spectral.wavelengths) == 31
     assert a.fits["full"].errors["rel_rmse"] < 0.3
     assert a.row()["gradient_test"] == GRADIENT_NOT_RUN
+
+
+def test_the_wavelength_law_statistic_and_rule():
+    """The law ratio of a material's fits and the rule that reads it, without fitting: below 1
+    the wavelength enters as diffraction predicts; the grey bands stay distinct."""
+    from types import SimpleNamespace
+
+    from brdfcl.analysis.samples import GREY, grey_lambdas, law_ratio
+
+    def fit(rmse, ok=True):
+        return SimpleNamespace(errors={"rmse_log": rmse}, success=ok)
+    assert law_ratio({"full": fit(0.01), GREY: fit(0.02)}) == pytest.approx(0.5)
+    assert np.isnan(law_ratio({"full": fit(0.01)})) and np.isnan(law_ratio({"full": fit(0.01), GREY: fit(0.02, False)}))
+    grey = grey_lambdas((0.4, 0.5, 0.6, 0.7))
+    assert len(set(grey)) == 4 and max(grey) / min(grey) - 1 < 1e-4 and grey[0] == 0.6
+    keep = SAMPLE_RULE.margins(float("nan"), 0, 0.5, 0.3)
+    assert SAMPLE_RULE.verdict(keep) == "diffraction"
+    assert SAMPLE_RULE.verdict(SAMPLE_RULE.margins(float("nan"), 0, 1.2, 0.3)) == "none"      # the law fits worse
+    assert SAMPLE_RULE.verdict(SAMPLE_RULE.margins(float("nan"), 0, 0.5, -0.1)) == "none"     # no lobe kept

@@ -77,6 +77,7 @@ def test_cli_writes_the_report_and_can_skip_it(demo_db, tmp_path):
     assert r.returncode == 0 and not (tmp_path / "b" / "report").exists()
 
 
+@pytest.mark.slow
 def test_cli_exports_a_finished_fit(run, tmp_path):
     from brdfcl.data.merl import read_merl
     fit = run / "synth-smooth-metal.json"

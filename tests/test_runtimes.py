@@ -203,6 +203,7 @@ def test_a_fit_error_on_the_command_line_is_short_without_debug(tmp_path, demo_d
 
 
 @needs_intel
+@pytest.mark.slow
 def test_dask_workers_load_intels_runtime_themselves(tmp_path):
     """A cluster started before any device is listed: its workers inherit no ICD folder and must
     make Intel's runtime loadable themselves."""
