@@ -115,3 +115,27 @@ def test_select_lobes_takes_scattered_samples(krylon, tmp_path):
     assert "fitted 1 material" in r.stdout, r.stderr
     k = json.loads((tmp_path / "o" / "krylon_blue.json").read_text())
     assert k["selected_by"] == "lobe comparison" and k["verdict"] == "none" and len(k["wavelengths_um"]) == 31
+
+
+@pytest.mark.slow
+def test_a_cluster_and_the_lobe_comparison_take_the_mixed_folder(mixed, tmp_path):
+    """One path for every format: a Dask cluster fits tables and spectral samples alike, as in
+    this process; --select-lobes chooses each material's form and compares its lobes, spectral
+    ones too, and with --rgb in R, G, B."""
+    pytest.importorskip("distributed")
+    r = _run(mixed, "--out", tmp_path / "here")
+    c = _run(mixed, "--out", tmp_path / "cluster", "--workers", "2")
+    assert "fitted 2 materials" in c.stdout and "1 skipped" in c.stdout, c.stderr
+    for name in ("krylon_blue", "synth-fabric"):
+        a, b = (json.loads((tmp_path / d / f"{name}.json").read_text()) for d in ("here", "cluster"))
+        assert a["errors"]["rmse_log"] == b["errors"]["rmse_log"] and a["form"] == b["form"], name
+    assert r.returncode == c.returncode == 1                       # bad.csv skipped in both
+    s = _run(mixed, "--out", tmp_path / "selected", "--select-lobes")
+    assert "fitted 2 materials" in s.stdout, s.stderr
+    k = json.loads((tmp_path / "selected" / "krylon_blue.json").read_text())
+    assert k["selected_by"] == "lobe comparison" and k["form"] in ("gtr:dielectric", "abc:schlick")
+    assert len(k["wavelengths_um"]) == 31 and set(k["form_errors"]) == {"gtr:dielectric", "abc:schlick"}
+    pytest.importorskip("colour")
+    g = _run(mixed, "--out", tmp_path / "rgb", "--select-lobes", "--rgb")
+    assert "fitted 2 materials" in g.stdout, g.stderr
+    assert len(json.loads((tmp_path / "rgb" / "krylon_blue.json").read_text())["wavelengths_um"]) == 3
