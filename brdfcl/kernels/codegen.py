@@ -17,7 +17,7 @@ import sympy as sp
 from mako.template import Template
 
 from brdfcl.kernels import inline_math
-from brdfcl.kernels.terms import c_source
+from brdfcl.kernels.terms import c_source, cell_source
 from brdfcl.model.compose import Model
 from brdfcl.model.lobes.lobe import Emitter
 from brdfcl.model.metrics import IMPLEMENTED_METRICS, check_metric
@@ -115,7 +115,7 @@ def render(model: Model, opt: KernelOptions) -> str:
         metric=opt.metric, cosw=opt.cosw, metric_g=fit_g, metric_dg=fit_dg,
         reported=[(m.name, m.c("xp")[0], m.c("xm")[0]) for m in IMPLEMENTED_METRICS.values()],
         real_v=opt.real + vec, cond_v=("int" if opt.real == "float" else "long") + vec,
-        common=read_kernel("common.cl"), sources=term_sources(model),
+        common=read_kernel("common.cl") + "\n" + cell_source(), sources=term_sources(model),
         inline_math=[inline_math.c_source(t, i) for t, i in dict.fromkeys(
             ((opt.real + vec, "int" + vec), ("float", "int")))] if opt.real == "float" else [],
         inline_names=inline_math.NAMES,

@@ -22,7 +22,7 @@ from sympy.printing.c import C99CodePrinter
 
 from brdfcl._cache import generated
 from brdfcl.model.terms.keys import formula_key
-from brdfcl.model.terms.symbols import CELL, EXP_LIMIT, f
+from brdfcl.model.terms.symbols import BASE, CELL, DERIVED, EXP_LIMIT, NOTES, f
 
 _VECTOR = frozenset((f, *CELL))
 
@@ -182,3 +182,27 @@ def _print_c(term) -> str:
             *(f"real_v *d_{n}" for n in names)]
     head = f"/* {term.kind} {term.name}: generated from {term.origin.replace('.', '/')}.py (do not edit). */"
     return "\n".join([head, f"inline real_v {term.cfunc}({', '.join(args)})", "{", *body, "}", ""])
+
+
+class _CellPrinter(_Printer):
+    """Prints an expression of the stored quantities as ``make_cell``'s arguments read them."""
+
+    def _print_Symbol(self, s):
+        return s.name
+
+
+@cache
+def cell_source() -> str:
+    """The kernels' ``cell_t`` and its prologue ``make_cell``: the stored quantities (BASE) and
+    every other one printed from its expression (brdfcl.model.terms.symbols.DERIVED), in the
+    order of operations written there, as the float64 reference's Cells evaluates them."""
+    fields = [*BASE, *DERIVED]
+    struct = [f"    real_v {s.name};{' ' * max(1, 10 - len(s.name))}/* {NOTES[s]} */" for s in fields]
+    p = _CellPrinter(set())            # as written, no shared subexpressions: the compiler shares them
+    body = [f"    c.{s.name} = {p._print(e) if p.vec(e) else f'(real_v)({p._print(e)})'};"
+            for s, e in DERIVED.items()]
+    args = ", ".join(f"real_v {s.name}" for s in BASE)
+    return "\n".join(["/* The per-cell quantities: generated from brdfcl/model/terms/symbols.py (do not edit). */",
+                      "typedef struct {", *struct, "} cell_t;", "",
+                      f"inline cell_t make_cell({args})", "{", "    cell_t c;",
+                      "    " + " ".join(f"c.{s.name} = {s.name};" for s in BASE), *body, "    return c;", "}", ""])

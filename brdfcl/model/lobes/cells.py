@@ -1,15 +1,18 @@
-"""Per-cell quantities that the lobes read, computed once from the geometry.
+"""Per-cell quantities that the lobes read, in float64: the reference of the kernels' prologue.
 
-The same quantities are formed in the kernels' prologue (kernels/common.cl,
-``make_cell``) from the stored ``sin th, cos th, cos td, cos ti, cos to``;
-this is the float64 reference of that prologue.  sin th is stored rather than
-derived so that tan^2 th keeps its precision at the peak in float32.
+A cell holds the five stored quantities (``sin th, cos th, cos td, cos ti, cos to``); every other
+one (``t2``, ``f0``, ``s5``, ``t2i``, ``t2o``, ``gv``, ``inv4cico``) is a property evaluated from
+its expression in brdfcl.model.terms.symbols.DERIVED, the same expression the kernels'
+``make_cell`` is printed from.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 import numpy as np
+import sympy as sp
+
+from brdfcl.model.terms.symbols import BASE, DERIVED, NOTES
 
 
 @dataclass
@@ -37,39 +40,20 @@ class Cells:
         return cls(sh, ch, cd, wi[..., 2], wo[..., 2])
 
     @property
-    def t2(self):
-        """tan^2 theta_h."""
-        return (self.sh / self.ch) ** 2
-
-    @property
     def sd(self):
         return np.sqrt(np.maximum(1.0 - self.cd ** 2, 0.0))
-
-    @property
-    def f0(self):
-        """Spatial frequency times wavelength: ||(i + o) x n|| = 2 sin th cos td."""
-        return 2.0 * self.sh * self.cd
-
-    @property
-    def s5(self):
-        """(1 - cos theta_d)^5, Schlick's factor."""
-        return (1.0 - self.cd) ** 5
-
-    @property
-    def t2i(self):
-        return (1.0 - self.ci ** 2) / self.ci ** 2
-
-    @property
-    def t2o(self):
-        return (1.0 - self.co ** 2) / self.co ** 2
-
-    @property
-    def gv(self):
-        """V-cavity shadowing/masking, parameter free."""
-        return np.minimum(1.0, 2.0 * self.ch * np.minimum(self.ci, self.co) / self.cd)
 
     def astype(self, dtype):
         return Cells(*(np.asarray(a, dtype=dtype) for a in (self.sh, self.ch, self.cd, self.ci, self.co)))
 
     def __len__(self):
         return self.sh.size
+
+
+def _derived(symbol, expr):
+    f = sp.lambdify(BASE, expr, "numpy")
+    return property(lambda self: f(self.sh, self.ch, self.cd, self.ci, self.co), doc=NOTES[symbol])
+
+
+for _symbol, _expr in DERIVED.items():
+    setattr(Cells, _symbol.name, _derived(_symbol, _expr))

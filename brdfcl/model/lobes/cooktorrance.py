@@ -6,7 +6,7 @@ from brdfcl.model.terms import REGISTRY, Param, shadowing_for
 
 RHO_S = Param("rho", 1e-6, 10.0, 0.5, log=True, per_channel=True, search=(1e-2, 5.0),
               doc="specular amplitude (times F; <= 1 for a physical surface)")
-INV_4_CI_CO = Known("c.inv4cico", lambda cells: 0.25 / (cells.ci * cells.co))
+INV_4_CI_CO = Known("c.inv4cico", lambda cells: cells.inv4cico)
 
 
 class CookTorrance(Lobe):
