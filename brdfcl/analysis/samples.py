@@ -105,7 +105,7 @@ def law_ratio(fits: dict) -> float:
 def analyze_samples(samples, fits: dict, specs: dict, rule: Rule | None = None,
                     cutoff_deg: float | None = 80.0) -> SampleAnalysis:
     """Analyse one material's samples (brdfcl.data.samples.Samples) from its fits (variant key ->
-    FitResult of brdfcl.optim.fit.fit_samples, the samples' bands; GREY: the full model fitted at
+    FitResult of brdfcl.optim.fit.Fitter.fit, the samples' bands; GREY: the full model fitted at
     ``grey_lambdas``) under ``rule`` (SAMPLE_RULE)."""
     rule = rule or SAMPLE_RULE
     errors = {k: r.errors["rmse_log"] for k, r in fits.items() if r.success and k in COMPARED}

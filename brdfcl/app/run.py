@@ -56,11 +56,11 @@ def fit_all(source, out=None, options: FitOptions | None = None, batch=100, expo
     ``overwrite`` are refitted and replaced.  ``pages``: write the run's report
     (``OUT/report/index.html``, brdfcl.report.view.pages) at the end (the CLI does unless --no-report).
 
-    Files of scattered samples (brdfcl.data.readers: Cornell .brdf, CSV) in ``source`` are fitted
-    with one channel per band at its wavelength, materials with the same bands in one batch
-    (brdfcl.optim.fit.Fitter.fit_samples); ``rgb`` first converts their spectra to linear sRGB
-    (brdfcl.data.rgb.to_rgb: D65, CIE 1931 2 deg), fitted with the R, G, B wavelengths of MERL
-    tables.  Their spectral fits have no MERL / BRDF Explorer export (an RGB fit has); their report
+    Every file a reader of brdfcl.data.readers reads is a measurement; those of the same channels
+    (and, for tables, the same layout) share a batch (brdfcl.app.runner.Runner.read).  Spectral
+    measurements are fitted with one channel per band at its wavelength; ``rgb`` first converts
+    their spectra to linear sRGB (brdfcl.data.rgb.to_rgb: D65, CIE 1931 2 deg), fitted with the
+    R, G, B wavelengths of MERL tables.  Their spectral fits have no MERL / BRDF Explorer export (an RGB fit has); their report
     page shows the samples against the fit in the plane of incidence.
 
     ``forms``: the candidate forms of the reflection lobe (brdfcl.optim.forms): each material is
