@@ -60,8 +60,8 @@ def fit_all(source, out=None, options: FitOptions | None = None, batch=100, expo
     (and, for tables, the same layout) share a batch (brdfcl.app.runner.Runner.read).  Spectral
     measurements are fitted with one channel per band at its wavelength; ``rgb`` first converts
     their spectra to linear sRGB (brdfcl.data.rgb.to_rgb: D65, CIE 1931 2 deg), fitted with the
-    R, G, B wavelengths of MERL tables.  Their spectral fits have no MERL / BRDF Explorer export (an RGB fit has); their report
-    page shows the samples against the fit in the plane of incidence.
+    R, G, B wavelengths of MERL tables.  Their spectral fits have no MERL / BRDF Explorer export (an
+    RGB fit has); their report page shows the samples against the fit in the plane of incidence.
 
     ``forms``: the candidate forms of the reflection lobe (brdfcl.optim.forms): each material is
     fitted in each and the form of least penalised error kept, recorded in NAME.json (``form``,

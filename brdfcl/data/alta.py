@@ -36,7 +36,7 @@ import numpy as np
 
 from brdfcl._words import count
 from brdfcl.data.errors import DataError, read_text
-from brdfcl.data.geometry import DEFAULT_CUTOFF_DEG, grid_directions, rusinkiewicz
+from brdfcl.data.geometry import DEFAULT_CUTOFF_DEG, coarse_cells, grid_directions, rusinkiewicz
 from brdfcl.data.measurement import Channel, Layout, Measurement, rgb_channels
 from brdfcl.data.samples import make_samples
 
@@ -45,10 +45,6 @@ INPUTS = {"RUSIN_TH_TD_PD": 3, "RUSIN_TH_PH_TD_PD": 4, "ISOTROPIC_TV_TL_DPHI": 3
 """The input parametrisations read, with their number of coordinates."""
 OUTPUTS = {"RGB_COLOR": rgb_channels(), "INV_STERADIAN": (Channel("BRDF", 0.55),)}
 """The outputs read, with the channels they give."""
-
-PEAK_THETA_H = 0.5 * np.pi * (4 / 90) ** 2
-"""theta_h below which a grid's coarse subset keeps more cells: the MERL table's first four bins."""
-
 
 class GridLayout(Layout):
     """The cells of a regular (theta_h, theta_d, phi_d) grid, numbered theta_h slowest: each at its
@@ -85,15 +81,8 @@ class GridLayout(Layout):
 
     def coarse(self, index: np.ndarray, stride: int, peak_bins: int,
                peak_stride: int) -> tuple[np.ndarray, np.ndarray]:
-        """Every ``peak_stride``-th cell below PEAK_THETA_H scaled to the MERL table's ``peak_bins``,
-        every ``stride``-th of the others, as the MERL table's coarse subset."""
-        th, _ = self._angles(index)
-        peak = th < 0.5 * np.pi * (peak_bins / 90) ** 2
-        near, rest = np.flatnonzero(peak)[::peak_stride], np.flatnonzero(~peak)[::stride]
-        idx = np.concatenate([near, rest])
-        scale = np.concatenate([np.full(near.size, float(peak_stride)), np.full(rest.size, float(stride))])
-        order = np.argsort(idx)
-        return index[idx[order]], scale[order]
+        """As the MERL table's coarse subset (brdfcl.data.geometry.coarse_cells), by theta_h."""
+        return coarse_cells(index, stride, peak_bins, peak_stride, theta_h=self._angles(index)[0])
 
     def lookup(self, wi: np.ndarray, wo: np.ndarray) -> np.ndarray:
         th, td, pd = rusinkiewicz(np.asarray(wi, float), np.asarray(wo, float))

@@ -217,13 +217,17 @@ def table_values(m: Measurement, index: np.ndarray) -> np.ndarray:
     return out
 
 
-def coarse_cells(full_index: np.ndarray, stride: int, peak_bins: int,
-                 peak_stride: int) -> tuple[np.ndarray, np.ndarray]:
-    """A coarse subset of the table cells ``full_index`` for the global search: (table indices,
-    weight scales).  Denser near the specular peak, where sharp lobes live in few theta_h bins; the
+def coarse_cells(full_index: np.ndarray, stride: int, peak_bins: int, peak_stride: int,
+                 theta_h: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """A coarse subset of the cells ``full_index`` for the global search: (indices, weight
+    scales).  Denser near the specular peak, where sharp lobes live in few theta_h bins: every
+    ``peak_stride``-th cell of the MERL table's first ``peak_bins`` theta_h bins (of any table:
+    ``theta_h``, each cell's, below those bins' upper edge), every ``stride``-th of the rest; the
     weights are scaled by the strides so that its loss estimates the full one."""
-    th_idx = full_index // (N_TD * N_PD)
-    peak = th_idx < peak_bins
+    if theta_h is None:
+        peak = full_index // (N_TD * N_PD) < peak_bins
+    else:
+        peak = theta_h < 0.5 * np.pi * (peak_bins / N_TH) ** 2
     near = np.flatnonzero(peak)[::peak_stride]
     rest = np.flatnonzero(~peak)[::stride]
     idx = np.concatenate([near, rest])

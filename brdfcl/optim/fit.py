@@ -86,15 +86,6 @@ class Fitter:
         """The fitted cells of a MERL table."""
         return select_cells(self.opts.cutoff_deg)
 
-    @property
-    def coarse_index(self) -> np.ndarray:
-        """The global search's cells of a MERL table."""
-        return self._subsets(self.full_index)[0]
-
-    def _subsets(self, full: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        o = self.opts
-        return coarse_cells(full, o.coarse_stride, o.coarse_peak_bins, o.coarse_peak_stride)
-
     def places(self, m: Measurement, dense: bool) -> list[Place]:
         """A measurement's cells in each stage: fitted, coarse and (with a preview) every n-th."""
         o = self.opts
