@@ -1,71 +1,108 @@
-"""A Mitsuba 3 BSDF plugin, ``"brdfcl"``, that renders a fitted model.
+"""A Mitsuba 3 BSDF plugin, ``"brdfcl"``, that renders a fitted model in every RGB variant.
 
-Install the extra (``pip install "brdfcl[mitsuba]"``), choose a scalar RGB variant, import this
-module (it registers the plugin for the current variant and for every variant set later) and
-name a fit result::
+Install the extra (``pip install "brdfcl[mitsuba]"``), choose an RGB variant, import this module
+(it registers the plugin for the current variant and for every variant set later) and name a
+fit result::
 
     import mitsuba as mi
-    mi.set_variant("scalar_rgb")
-    import brdfcl.report.export.mitsuba            # registers "brdfcl"; or brdfcl.report.export.mitsuba.register()
+    mi.set_variant("llvm_ad_rgb")                  # or scalar_rgb, cuda_ad_rgb
+    import brdfcl.report.export.mitsuba            # registers "brdfcl"
     bsdf = mi.load_dict({"type": "brdfcl", "fit": "fits/brass.json"})
 
 ``fit`` is what ``brdfcl fit-all --out DIR`` writes per material (``DIR/NAME.json``).  The BSDF
-evaluates the fitted lobes with brdfcl's float64 reference (``Model.reference``, the formulas the
-fit used) and importance-samples them with a mixture of cosine-weighted hemisphere sampling,
-the Cook-Torrance lobe's NDF and a GGX stand-in for the diffraction lobe per channel
-(`brdfcl.report.export.sampling` says how, and how the mixture weights are chosen).  It is one-sided
-(front side only, zero below the horizon) and reflects only.
+evaluates the fitted lobes with the functions printed from the terms' formulas in Dr.Jit
+(brdfcl.report.export.drjit_model; the same formulas as the kernels and the float64 reference):
+vectorised over a wavefront in the JIT variants (``llvm_ad_rgb``, ``cuda_ad_rgb``), per ray in the
+scalar ones, and differentiable in the ``_ad_`` variants.  The fitted parameters are scene
+parameters, named as in NAME.json with ``.`` written ``_`` (``ct.alpha`` -> ``ct_alpha``)::
 
-The evaluation runs in numpy, one call per ray: variants ``scalar_rgb`` (tested) and
-``scalar_rgb_double`` where built.  JIT variants (``llvm_*``, ``cuda_*``) trace the plugin
-symbolically and spectral variants need spectra the fit does not have: they are refused with
-one line when the BSDF is made.
+    params = mi.traverse(scene)
+    key = "sphere.bsdf.ct_alpha"
+    dr.enable_grad(params[key]); params.update()
+    image = mi.render(scene, params)               # then dr.forward(params[key]), dr.grad(image)
+
+Importance sampling is a mixture of cosine-weighted hemisphere sampling, the Cook-Torrance
+lobe's NDF and a GGX stand-in for the diffraction lobe per channel (`brdfcl.report.export.sampling`
+says how, and how the mixture weights are chosen, once, when the BSDF is made); the pdf is the
+mixture's exact density.  The BSDF is one-sided (front side only, zero below the horizon) and
+reflects only.  Spectral and monochrome variants need spectra the fit does not have: they are
+refused with one line when the BSDF is made.
 """
 from __future__ import annotations
 
 try:
-    import drjit as dr  # noqa: F401  (mitsuba needs it; imported for a clear error)
+    import drjit as dr
     import mitsuba as mi
 except ImportError as _e:  # pragma: no cover - depends on the environment
     raise ImportError(
         "brdfcl.report.export.mitsuba needs Mitsuba 3, which is not installed: "
         'pip install "brdfcl[mitsuba]"  (the mitsuba package from PyPI)') from _e
 
+import math
+from typing import Any
+
 import numpy as np
 
+from brdfcl.report.export.drjit_model import DrjitModel, cells, ndf_density
 from brdfcl.report.export.fitfile import load_fit
 from brdfcl.report.export.sampling import Sampler
 
 PLUGIN_NAME = "brdfcl"
+LLVM_MIN = (17,)
+"""Dr.Jit 1.5's LLVM kernels use llvm.minimum / llvm.maximum, which LLVM 16 and older cannot
+compile for x86 ("Cannot select: fmaximum", a crash of the whole process)."""
+_U_MAX = 1.0 - 2.0 ** -24
+"""The largest sample value used (1 - u stays positive in float32)."""
 _registered: set = set()
+_classes: dict = {}
 
 
 def _check_variant():
     v = mi.variant()
     if v is None:
-        raise RuntimeError("no Mitsuba variant is set: call mi.set_variant('scalar_rgb') first")
-    if not (v.startswith("scalar_") and "rgb" in v and "polarized" not in v):
-        raise RuntimeError(f"the brdfcl BSDF evaluates the fit in numpy, one ray at a time: it "
-                           f"needs a scalar RGB variant (scalar_rgb), not '{v}'")
+        raise RuntimeError("no Mitsuba variant is set: call mi.set_variant('llvm_ad_rgb') first")
+    if not v.endswith("_rgb"):
+        raise RuntimeError(f"the brdfcl BSDF renders a fit's R, G, B channels: it needs an RGB variant "
+                           f"(llvm_ad_rgb, cuda_ad_rgb, scalar_rgb), not '{v}'")
+    if v.startswith("llvm_"):
+        have = tuple(dr.detail.llvm_version())
+        if have < LLVM_MIN:
+            raise RuntimeError(
+                f"Dr.Jit loaded libLLVM {'.'.join(map(str, have))}, which cannot compile its kernels (it needs "
+                f"{LLVM_MIN[0]} or newer; 19 is tested): install a newer one (Debian 12: apt install libllvm19) "
+                f"or point DRJIT_LIBLLVM_PATH at it, or use scalar_rgb")
     return v
 
 
-def _vec(v):
-    return np.array([float(v[0]), float(v[1]), float(v[2])])[None, :]
+def _resolve(path: str) -> str:
+    """A fit path as Mitsuba resolves files: relative to the scene file being loaded, then the
+    working folder."""
+    get: Any = getattr(mi, "file_resolver", None) or (lambda: mi.Thread.thread().file_resolver())
+    resolver = get()
+    return str(resolver.resolve(path))
 
 
-def _color(x):
-    return mi.Color3f(float(x[0]), float(x[1]), float(x[2]))
+def param_key(slot_name: str) -> str:
+    """The scene parameter of a model parameter: ``ct.alpha`` -> ``ct_alpha``."""
+    return slot_name.replace(".", "_")
 
 
-_classes: dict = {}
+def _half_vector(kind, alpha, u, v):
+    """Half-vectors distributed as D(h) cos(theta_h) for the GGX or Beckmann distribution."""
+    u = dr.select(u < _U_MAX, u, _U_MAX)
+    a2 = alpha * alpha
+    t2 = a2 * u / (1.0 - u) if kind == "ggx" else -a2 * dr.log(1.0 - u)
+    ch = dr.rsqrt(1.0 + t2)
+    sh = dr.sqrt(t2) * ch
+    s, c = dr.sincos(2.0 * math.pi * v)
+    return mi.Vector3f(sh * c, sh * s, ch)
 
 
 def bsdf_class():
     """The plugin's class for the current variant (Mitsuba's BSDF base class is per variant)."""
     v = mi.variant()
     if v is None:
-        raise RuntimeError("no Mitsuba variant is set: call mi.set_variant('scalar_rgb') first")
+        raise RuntimeError("no Mitsuba variant is set: call mi.set_variant('llvm_ad_rgb') first")
     if v in _classes:
         return _classes[v]
 
@@ -75,65 +112,86 @@ def bsdf_class():
         def __init__(self, props):
             mi.BSDF.__init__(self, props)
             _check_variant()
-            try:
-                has_fit = "fit" in props
-            except TypeError:                    # Mitsuba before 3.6
-                has_fit = props.has_property("fit")
-            if not has_fit:
+            if "fit" not in props:
                 raise ValueError('the brdfcl BSDF needs "fit": the path of a fit-all NAME.json')
             self.fit_path = str(props["fit"])
-            fit = load_fit(self.fit_path)
-            self.model, self.values, self.material = fit.model, fit.values, fit.name
-            self.sampler = Sampler(self.model, self.values)
+            fit = load_fit(_resolve(self.fit_path))
+            if fit.model.n_channels != 3:
+                raise ValueError(f"{self.fit_path}: a fit of {fit.model.n_channels} channels; the brdfcl "
+                                 f"BSDF renders fits of 3 (R, G, B)")
+            self.material = fit.name
+            self.model = DrjitModel(fit.model, fit.values, mi.Float)
+            self.sampler = Sampler(fit.model, fit.values)
+            comps = self.sampler.components
+            self._comps = [(c.kind, float(c.alpha), float(c.weight)) for c in comps]
+            self._cum = [float(x) for x in np.cumsum([c.weight for c in comps])]
             diffuse = mi.BSDFFlags.DiffuseReflection | mi.BSDFFlags.FrontSide
             glossy = mi.BSDFFlags.GlossyReflection | mi.BSDFFlags.FrontSide
             # component 0: the cosine-weighted part (diffuse lobe), 1: the half-vector lobes
             self.m_components = [diffuse, glossy]
             self.m_flags = diffuse | glossy
-            self._types = (int(mi.BSDFFlags.DiffuseReflection), int(mi.BSDFFlags.GlossyReflection))
 
         # Mitsuba's interface: wi = si.wi (towards the viewer), wo towards the light, local frame;
         # eval returns f(wi, wo) cos(theta_o).
+        def _eval(self, wi, wo, active):
+            f = self.model.brdf(wi, wo)
+            return dr.select(active, mi.Color3f(f[0], f[1], f[2]) * dr.maximum(wo.z, 0.0), 0.0)
+
+        def _pdf(self, wi, wo, active):
+            up = active & (wi.z > 0) & (wo.z > 0)
+            c, valid = cells(wi, wo)
+            hx, hy, hz = wi.x + wo.x, wi.y + wo.y, wi.z + wo.z
+            d = (wo.x * hx + wo.y * hy + wo.z * hz) * dr.rsqrt(dr.select(valid, hx * hx + hy * hy + hz * hz, 1.0))
+            ok = valid & (d > 0)
+            total = 0.0
+            for kind, alpha, weight in self._comps:
+                if kind == "cosine":
+                    p = dr.select(up, wo.z, 0.0) * (1.0 / math.pi)
+                else:
+                    D = ndf_density(kind, alpha, c.ch, c.t2)
+                    p = dr.select(ok, D * c.ch / (4.0 * dr.select(ok, d, 1.0)), 0.0)
+                total = total + weight * p
+            return dr.select(up, total, 0.0)
+
         def eval(self, ctx, si, wo, active=True):
-            if not active:
-                return mi.Color3f(0.0)
-            return _color(self.sampler.eval(_vec(si.wi), _vec(wo))[:, 0])
+            return self._eval(si.wi, wo, active)
 
         def pdf(self, ctx, si, wo, active=True):
-            if not active:
-                return 0.0
-            return float(self.sampler.pdf(_vec(si.wi), _vec(wo))[0])
+            return self._pdf(si.wi, wo, active)
 
         def eval_pdf(self, ctx, si, wo, active=True):
-            if not active:
-                return mi.Color3f(0.0), 0.0
-            f, p = self.sampler.eval_pdf(_vec(si.wi), _vec(wo))
-            return _color(f[:, 0]), float(p[0])
+            return self._eval(si.wi, wo, active), self._pdf(si.wi, wo, active)
 
         def sample(self, ctx, si, sample1, sample2, active=True):
-            bs = mi.BSDFSample3f()
-            if not active:
-                return bs, mi.Color3f(0.0)
-            wo, p, w, k = self.sampler.sample(_vec(si.wi), [float(sample1)],
-                                              [[float(sample2[0]), float(sample2[1])]])
-            if p[0] <= 0:
-                return bs, mi.Color3f(0.0)      # pdf 0: an invalid sample, as Mitsuba's BSDFs do
-            comp = 0 if self.sampler.components[int(k[0])].kind == "cosine" else 1
-            bs.wo = mi.Vector3f(float(wo[0, 0]), float(wo[0, 1]), float(wo[0, 2]))
-            bs.pdf = float(p[0])
+            wi = si.wi
+            wo = mi.warp.square_to_cosine_hemisphere(sample2)
+            glossy = mi.Bool(False)
+            for j, (kind, alpha, _) in enumerate(self._comps[1:], start=1):
+                h = _half_vector(kind, alpha, sample2.x, sample2.y)
+                reflected = 2.0 * dr.dot(wi, h) * h - wi
+                take = sample1 >= self._cum[j - 1]
+                wo = dr.select(take, reflected, wo)
+                glossy = glossy | take
+            f, pdf = self.eval_pdf(ctx, si, wo, active)
+            valid = active & (pdf > 0) & (wi.z > 0) & (wo.z > 0)
+            bs = dr.zeros(mi.BSDFSample3f)
+            bs.wo = wo
+            bs.pdf = dr.select(valid, pdf, 0.0)
             bs.eta = 1.0
-            bs.sampled_component = comp
-            bs.sampled_type = self._types[comp]
-            return bs, _color(w[:, 0])
+            bs.sampled_component = dr.select(glossy, mi.UInt32(1), mi.UInt32(0))
+            bs.sampled_type = dr.select(glossy, mi.UInt32(+mi.BSDFFlags.GlossyReflection),
+                                        mi.UInt32(+mi.BSDFFlags.DiffuseReflection))
+            return bs, dr.select(valid, f / dr.select(valid, pdf, 1.0), 0.0)
 
         def traverse(self, callback):
-            pass
+            for name, value in self.model.params.items():
+                callback.put(param_key(name), value, mi.ParamFlags.Differentiable)
 
         def parameters_changed(self, keys=None):
-            pass
+            self.model.update()
 
         def to_string(self):
-            return (f"BrdfclBSDF[\n  fit = \"{self.fit_path}\",\n  model = {self.model.spec},\n"
+            return (f"BrdfclBSDF[\n  fit = \"{self.fit_path}\",\n  model = {self.model.model.spec},\n"
                     f"  sampling = {self.sampler.describe()}\n]")
 
     _classes[v] = BrdfclBSDF
@@ -146,7 +204,7 @@ def register():
     Importing this module does it for the variant set then and for every variant set later."""
     v = mi.variant()
     if v is None:
-        raise RuntimeError("no Mitsuba variant is set: call mi.set_variant('scalar_rgb') first")
+        raise RuntimeError("no Mitsuba variant is set: call mi.set_variant('llvm_ad_rgb') first")
     if v not in _registered:
         cls = bsdf_class()
         mi.register_bsdf(PLUGIN_NAME, lambda props: cls(props))
