@@ -325,9 +325,9 @@ def cmd_export(args):
 
     from brdfcl.report.export.fitfile import load_fit
     from brdfcl.report.writers import FIT, Job, export_writers
-    wanted = {"brdf_explorer": args.brdf_explorer, "merl": args.merl}
+    wanted = {"brdf_explorer": args.brdf_explorer, "merl": args.merl, "mitsuba": args.mitsuba}
     if not any(wanted.values()):
-        raise UsageError("give --brdf-explorer PATH and/or --merl PATH")
+        raise UsageError("give one or more of --brdf-explorer PATH, --merl PATH, --mitsuba DIR")
     for out in wanted.values():
         if out and os.path.exists(out) and os.path.samefile(out, args.fit):
             raise UsageError(f"{out}: would overwrite the fit it exports")
@@ -341,6 +341,9 @@ def cmd_export(args):
     for name, path in wanted.items():
         if path:
             print(f"wrote {export_writers()[name].export(Path(path), fit.doc, job)}")
+            if name == "mitsuba":
+                from brdfcl.report.export.mitsuba_scene import builtin_mapping
+                print(f"Mitsuba's own BSDFs: {builtin_mapping(fit.model, fit.values).note}")
     return 0
 
 
@@ -484,15 +487,20 @@ def build_parser():
     p.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     p.set_defaults(func=cmd_analyze)
 
-    p = sub.add_parser("export", help="write a finished fit for a renderer: BRDF Explorer, MERL table",
+    p = sub.add_parser("export", help="write a finished fit for a renderer: BRDF Explorer, MERL table, Mitsuba 3",
                        description="Write a finished fit (OUT/NAME.json written by fit-all) for a renderer, "
                                    "without fitting again: as a BRDF Explorer .brdf file (its analytic GLSL "
-                                   "format) and/or tabulated as a MERL .binary table.",
+                                   "format), tabulated as a MERL .binary table, and/or as Mitsuba 3 scene files "
+                                   "(the brdfcl BSDF, and Mitsuba's own BSDFs where the fit maps onto them).",
                        epilog="examples:\n  brdfcl export out/merl/synth-fabric.json --brdf-explorer fabric.brdf\n"
-                              "  brdfcl export out/merl/synth-fabric.json --merl fabric-fit.binary")
+                              "  brdfcl export out/merl/synth-fabric.json --merl fabric-fit.binary\n"
+                              "  brdfcl export out/merl/synth-fabric.json --mitsuba mitsuba/")
     p.add_argument("fit", help="a NAME.json written by fit-all")
     p.add_argument("--brdf-explorer", metavar="PATH", help="write a BRDF Explorer .brdf file (analytic GLSL)")
     p.add_argument("--merl", metavar="PATH", help="write the fitted model tabulated as a MERL .binary")
+    p.add_argument("--mitsuba", metavar="DIR",
+                   help="write Mitsuba 3 files into DIR: NAME.xml, NAME-scene.xml, NAME.py and, where the fit "
+                        "maps onto Mitsuba's own BSDFs, NAME-builtin.xml and NAME-builtin-scene.xml")
     p.add_argument("--device", default=None, help=f"for --merl: {device_help}")
     p.set_defaults(func=cmd_export)
 

@@ -17,6 +17,7 @@ from brdfcl.report.writers.analysis_maps import AnalysisMaps
 from brdfcl.report.writers.base import ANALYSIS, FIT, ExportWriter, Item, Job, Writer
 from brdfcl.report.writers.brdf_explorer import BrdfExplorerExport
 from brdfcl.report.writers.merl import MerlExport
+from brdfcl.report.writers.mitsuba import MitsubaExport
 from brdfcl.report.writers.pages import ReportPages
 from brdfcl.report.writers.result_json import ResultJson
 from brdfcl.report.writers.summary import SummaryCsv
@@ -25,6 +26,7 @@ IMPLEMENTED_WRITERS: dict[str, Writer] = {w.name: w for w in (
     ResultJson(),               # NAME.json                 fit jobs
     MerlExport(),               # NAME.binary               fit jobs, --export-merl
     BrdfExplorerExport(),       # NAME.brdf                 fit jobs, export="brdf_explorer"
+    MitsubaExport(),            # NAME-mitsuba/             fit jobs, export="mitsuba"
     SummaryCsv(),               # summary.csv               fit jobs (reads every NAME.json)
     AnalysisMaps(),             # NAME.exr                  analyses
     AnalysisFigures(),          # figures/NAME_KIND.png     analyses, unless --no-figures

@@ -1,0 +1,154 @@
+"""Mitsuba 3 scene files of a fit (brdfcl.report.export.mitsuba_scene, ``brdfcl export --mitsuba``).
+
+The mapping onto Mitsuba's own BSDFs is checked twice: in float64, against brdfcl's reference
+(Mitsuba's formulas written out, which must be the fit's where the mapping says exact), and by
+rendering both with Mitsuba (skipped without the extra, or without an LLVM Dr.Jit can use)."""
+import json
+import runpy
+import subprocess
+import sys
+import xml.etree.ElementTree as ET
+
+import numpy as np
+import pytest
+
+from brdfcl.model.compose import Model
+from brdfcl.model.lobes.cells import Cells
+from brdfcl.report.export.fitfile import fit_document
+from brdfcl.report.export.mitsuba_scene import _builtin_reference, _directions, builtin_mapping, write_mitsuba
+
+EXACT = ["diffuse+ggx:smith:conductor", "diffuse+ggx:smith:dielectric", "ggx:smith:none", "ggx:smith:conductor"]
+APPROXIMATE = ["diffuse+beckmann:smith:schlick", "diffuse+ggx:smith-hc:conductor", "diffuse+ggx:smith:schlick"]
+NONE = {"diffuse+diffraction+ggx": "diffraction", "diffuse+gtr:smith:dielectric": "gtr",
+        "diffuse+ggx:vcavity:conductor": "vcavity", "diffuse+ggx+ggx": "two lobes"}
+
+
+def _values(spec, rho_s=1.6):
+    """Defaults, with a specular amplitude above 1 (Mitsuba's reflectance limit) where there is one."""
+    m = Model(spec)
+    v = m.defaults()
+    for i, s in enumerate(m.slots):
+        if s.name.startswith("ct.rho"):
+            v[i] = rho_s * (1 - 0.2 * s.channel)
+        if s.name.startswith("diffuse.rho"):
+            v[i] = 0.1 + 0.05 * s.channel
+    return m, v
+
+
+@pytest.mark.parametrize("spec", EXACT)
+def test_exact_mappings_are_the_fit_in_float64(spec):
+    m, v = _values(spec)
+    mp = builtin_mapping(m, v)
+    assert mp.exact and mp.note.startswith("exact"), mp.note
+    cells = Cells.from_directions(*_directions())
+    np.testing.assert_allclose(_builtin_reference(mp.bsdf, cells), m.reference(cells, v, jacobian=False),
+                               rtol=1e-12, atol=0)
+
+
+@pytest.mark.parametrize("spec", APPROXIMATE)
+def test_approximate_mappings_state_their_difference(spec):
+    m, v = _values(spec)
+    mp = builtin_mapping(m, v)
+    assert not mp.exact and mp.bsdf is not None
+    cells = Cells.from_directions(*_directions())
+    f, g = m.reference(cells, v, jacobian=False), _builtin_reference(mp.bsdf, cells)
+    stated = float(mp.note.split("differs by up to ")[1].split("%")[0])
+    ok = f > 1e-12 * f.max()
+    assert stated == pytest.approx(100 * np.max(np.abs(g[ok] - f[ok]) / f[ok]), rel=0.05)
+    assert stated > 0
+
+
+@pytest.mark.parametrize("spec, why", NONE.items())
+def test_fits_without_a_builtin_counterpart_say_why(spec, why):
+    m, v = _values(spec)
+    mp = builtin_mapping(m, v)
+    assert mp.bsdf is None and why in mp.note, mp.note
+
+
+def test_files_written_parse_and_load_as_python(tmp_path):
+    m, v = _values("diffuse+ggx:smith:conductor")
+    fit = tmp_path / "fits" / "brass.json"
+    fit.parent.mkdir()
+    fit.write_text(json.dumps(fit_document(m, v, "brass")))
+    out = tmp_path / "mitsuba"
+    written = {p.name for p in write_mitsuba(out, fit)}
+    assert written == {"brass.json", "brass.xml", "brass-scene.xml", "brass-builtin.xml", "brass-builtin-scene.xml",
+                       "brass.py", "brass-reflectance.exr", "brass-specular_reflectance.exr"}
+    for name in written - {"brass.json", "brass.py"} - {n for n in written if n.endswith(".exr")}:
+        ET.parse(out / name)                                   # well-formed XML
+    frag = ET.parse(out / "brass-builtin.xml").getroot()
+    assert frag.find("bsdf").get("id") == "brass-builtin"
+    d = runpy.run_path(str(out / "brass.py"))
+    assert d["BSDF"] == {"type": "brdfcl", "fit": str(out / "brass.json")}
+    assert d["BUILTIN"]["type"] == "blendbsdf" and d["BUILTIN_NOTE"].startswith("exact")
+    # amplitudes above 1 travel as 1 x 1 EXR textures, with the values the mapping holds
+    import OpenEXR
+    with OpenEXR.File(str(out / "brass-specular_reflectance.exr"), separate_channels=True) as f:
+        rgb = [float(f.channels()[c].pixels[0, 0]) for c in "RGB"]
+    np.testing.assert_allclose(rgb, builtin_mapping(m, v).bsdf["bsdf_1"]["specular_reflectance"]["value"], rtol=1e-6)
+    assert json.loads((out / "brass.json").read_text())["model"] == m.spec
+
+
+def test_cli_export_mitsuba(tmp_path):
+    m, v = _values("diffuse+ggx:smith:dielectric")
+    fit = tmp_path / "plastic.json"
+    fit.write_text(json.dumps(fit_document(m, v, "plastic")))
+    run = subprocess.run([sys.executable, "-m", "brdfcl.app.cli", "export", str(fit), "--mitsuba", str(tmp_path / "m")],
+                         capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0, run.stderr
+    assert "Mitsuba's own BSDFs: exact" in run.stdout
+    assert (tmp_path / "m" / "plastic-builtin-scene.xml").exists()
+    run = subprocess.run([sys.executable, "-m", "brdfcl.app.cli", "export", str(fit)], capture_output=True, text=True,
+                         timeout=120)
+    assert run.returncode != 0 and "--mitsuba DIR" in run.stderr and len(run.stderr.splitlines()) <= 3
+
+
+@pytest.fixture
+def mi():
+    mi = pytest.importorskip("mitsuba", reason='Mitsuba 3 not installed: pip install "brdfcl[mitsuba]"')
+    try:
+        mi.set_variant("llvm_ad_rgb")
+    except Exception as e:
+        pytest.skip(f"llvm_ad_rgb unavailable here: {str(e).splitlines()[0]}")
+    import drjit as dr
+
+    import brdfcl.report.export.mitsuba as plugin
+    if tuple(dr.detail.llvm_version()) < plugin.LLVM_MIN:
+        pytest.skip("Dr.Jit's libLLVM is too old for its kernels (Debian 12: apt install libllvm19)")
+    return mi
+
+
+@pytest.mark.parametrize("spec", ["diffuse+ggx:smith:conductor", "diffuse+ggx:smith:dielectric",
+                                  "diffuse+ggx:smith:schlick"])
+def test_builtin_bsdfs_render_as_the_brdfcl_bsdf(mi, tmp_path, spec):
+    """Both BSDFs on a sphere under a directional light, the same sample positions: an exact
+    mapping agrees to float32 rounding, an approximate one within the difference it states."""
+    m, v = _values(spec)
+    fit = tmp_path / "x.json"
+    fit.write_text(json.dumps(fit_document(m, v, "x")))
+    write_mitsuba(tmp_path / "m", fit)
+    d = runpy.run_path(str(tmp_path / "m" / "x.py"))
+    light = np.array([-0.5, 0.6, 0.62]) / np.linalg.norm([-0.5, 0.6, 0.62])
+
+    def render(bsdf):
+        return np.array(mi.render(mi.load_dict({
+            "type": "scene", "integrator": {"type": "direct", "emitter_samples": 1, "bsdf_samples": 0},
+            "sensor": {"type": "orthographic",
+                       "to_world": mi.ScalarTransform4f.look_at(origin=[0, 0, 3], target=[0, 0, 0], up=[0, 1, 0]),
+                       "film": {"type": "hdrfilm", "width": 64, "height": 64, "pixel_format": "rgb"},
+                       "sampler": {"type": "stratified", "sample_count": 4, "seed": 2}},
+            "sphere": {"type": "sphere", "bsdf": bsdf},
+            "light": {"type": "directional", "direction": (-light).tolist()}})), dtype=np.float64)
+    a, b = render(d["BSDF"]), render(d["BUILTIN"])
+    lit = a > 1e-6 * a.max()
+    rel = np.abs(b[lit] - a[lit]) / a[lit]
+    print(f"\n{spec}: built-in vs brdfcl BSDF, median relative difference {np.median(rel):.2e}, "
+          f"largest {rel.max():.2e} ({d['BUILTIN_NOTE']})")
+    if builtin_mapping(m, v).exact:
+        assert rel.max() < 1e-4
+    else:
+        stated = float(d["BUILTIN_NOTE"].split("differs by up to ")[1].split("%")[0]) / 100
+        assert rel.max() < stated * 1.05 + 1e-4
+    for scene in ("x-scene.xml", "x-builtin-scene.xml"):       # the complete scenes load and render
+        img = np.array(mi.render(mi.load_file(str(tmp_path / "m" / scene), res=16, spp=4)))
+        assert img.shape == (16, 16, 3) and np.isfinite(img).all() and img.max() > 0
