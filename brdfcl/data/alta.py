@@ -159,6 +159,8 @@ def read_rows(path: str | os.PathLike[str]) -> AltaRows:
     if header.get("FORMAT", "text").lower() != "text":
         raise DataError(path, f"#FORMAT {header['FORMAT']}: brdfcl reads ALTA's text data files only")
     n_in, n_out = _dim(path, header)
+    if not any(ln.strip() and not ln.lstrip().startswith("#") for ln in rows):
+        raise DataError(path, "no data rows after the header (a file cut short?)")
     param_in, param_out = header.get("PARAM_IN", ""), header.get("PARAM_OUT", "")
     if param_in not in PARAMS:
         raise DataError(path, f"#PARAM_IN {param_in or '(none)'}: brdfcl reads {', '.join(PARAMS)}")
