@@ -275,8 +275,8 @@ def _as_table(path: str, x: np.ndarray, values: np.ndarray, channels) -> AltaTab
     combination once); None otherwise."""
     axes, where = [], []
     for c in range(3):
-        a, inv = np.unique(np.round(x[:, c], 9), return_inverse=True)
-        axes.append(a)
+        _, first, inv = np.unique(np.round(x[:, c], 9), return_index=True, return_inverse=True)
+        axes.append(x[first, c])                    # the values as written, not their rounding
         where.append(inv.ravel())
     shape = tuple(a.size for a in axes)
     if np.prod(shape) != x.shape[0] or min(shape) < 2:
