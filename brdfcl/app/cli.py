@@ -319,15 +319,22 @@ def cmd_analyze(args):
 
 
 def cmd_export(args):
-    """A finished fit (NAME.json) as a BRDF Explorer file and/or a MERL table, without refitting:
-    the export writers of a fit job (brdfcl.report.writers), each to the path given."""
+    """A finished fit (NAME.json) as a BRDF Explorer file, a MERL table and/or an ALTA data file,
+    without refitting: the export writers of a fit job (brdfcl.report.writers), each to the path
+    given."""
     from pathlib import Path
 
     from brdfcl.report.export.fitfile import load_fit
     from brdfcl.report.writers import FIT, Job, export_writers
-    wanted = {"brdf_explorer": args.brdf_explorer, "merl": args.merl, "mitsuba": args.mitsuba}
+    wanted = {"brdf_explorer": args.brdf_explorer, "merl": args.merl, "mitsuba": args.mitsuba, "alta": args.alta}
+    if args.at is not None and not args.alta:
+        raise UsageError("--at FILE gives the points of --alta PATH: give --alta too")
     if not any(wanted.values()):
-        raise UsageError("give one or more of --brdf-explorer PATH, --merl PATH, --mitsuba DIR")
+        raise UsageError("give one or more of --brdf-explorer PATH, --merl PATH, --mitsuba DIR, --alta PATH")
+    writers = export_writers()
+    if args.at is not None:
+        from brdfcl.report.writers.alta import AltaExport
+        writers["alta"] = AltaExport(at=args.at)
     for out in wanted.values():
         if out and os.path.exists(out) and os.path.samefile(out, args.fit):
             raise UsageError(f"{out}: would overwrite the fit it exports")
@@ -337,10 +344,11 @@ def cmd_export(args):
         # local: only a MERL export needs OpenCL
         from brdfcl.device.engine import Engine
         return Engine(fit.model, device=args.device)
-    job = Job(FIT, Path(args.fit).parent, exports=frozenset(k for k, v in wanted.items() if v), engine=engine)
+    job = Job(FIT, Path(args.fit).parent, exports=frozenset(k for k, v in wanted.items() if v), engine=engine,
+              log=print)
     for name, path in wanted.items():
         if path:
-            print(f"wrote {export_writers()[name].export(Path(path), fit.doc, job)}")
+            print(f"wrote {writers[name].export(Path(path), fit.doc, job)}")
             if name == "mitsuba":
                 from brdfcl.report.export.mitsuba_scene import builtin_mapping
                 print(f"Mitsuba's own BSDFs: {builtin_mapping(fit.model, fit.values).note}")
@@ -487,20 +495,31 @@ def build_parser():
     p.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     p.set_defaults(func=cmd_analyze)
 
-    p = sub.add_parser("export", help="write a finished fit for a renderer: BRDF Explorer, MERL table, Mitsuba 3",
+    p = sub.add_parser("export", help="write a finished fit for a renderer: BRDF Explorer, MERL table, Mitsuba 3, ALTA",
                        description="Write a finished fit (OUT/NAME.json written by fit-all) for a renderer, "
                                    "without fitting again: as a BRDF Explorer .brdf file (its analytic GLSL "
-                                   "format), tabulated as a MERL .binary table, and/or as Mitsuba 3 scene files "
-                                   "(the brdfcl BSDF, and Mitsuba's own BSDFs where the fit maps onto them).",
+                                   "format), tabulated as a MERL .binary table, as Mitsuba 3 scene files (the "
+                                   "brdfcl BSDF, and Mitsuba's own BSDFs where the fit maps onto them) and/or as "
+                                   "an ALTA data file.",
                        epilog="examples:\n  brdfcl export out/merl/synth-fabric.json --brdf-explorer fabric.brdf\n"
                               "  brdfcl export out/merl/synth-fabric.json --merl fabric-fit.binary\n"
-                              "  brdfcl export out/merl/synth-fabric.json --mitsuba mitsuba/")
+                              "  brdfcl export out/merl/synth-fabric.json --mitsuba mitsuba/\n"
+                              "  brdfcl export out/alta/retro-gray-tape.json --alta retro-fit.alta\n"
+                              "  brdfcl export out/merl/synth-fabric.json --alta fabric.alta --at points.alta")
     p.add_argument("fit", help="a NAME.json written by fit-all")
     p.add_argument("--brdf-explorer", metavar="PATH", help="write a BRDF Explorer .brdf file (analytic GLSL)")
     p.add_argument("--merl", metavar="PATH", help="write the fitted model tabulated as a MERL .binary")
     p.add_argument("--mitsuba", metavar="DIR",
                    help="write Mitsuba 3 files into DIR: NAME.xml, NAME-scene.xml, NAME.py and, where the fit "
                         "maps onto Mitsuba's own BSDFs, NAME-builtin.xml and NAME-builtin-scene.xml")
+    p.add_argument("--alta", metavar="PATH",
+                   help="write the fitted model as an ALTA data file (float64 reference values): at the "
+                        "points of the measurement the fit was made from when NAME.json records it "
+                        "(\"source\") and it is readable (an ALTA file: its rows, parametrisation and "
+                        "outputs; scattered samples: CARTESIAN), else on a RUSIN_TH_TD_PD grid of every "
+                        "third MERL bin centre (30 x 30 x 60)")
+    p.add_argument("--at", metavar="FILE", help="for --alta: at the points of this ALTA file instead, in its "
+                                                "parametrisation and outputs")
     p.add_argument("--device", default=None, help=f"for --merl: {device_help}")
     p.set_defaults(func=cmd_export)
 

@@ -16,35 +16,42 @@ construction of brdfcl.data.geometry.directions; ALTA exports a MERL table this 
 centre, phi_d in (0, pi)).  Rows that form a full regular grid (every combination of each axis'
 values, once) are a table: a `GridLayout` of that grid, dense, with a lookup, so that the
 analysis and the report read it as they read a MERL table.  Any other rows (those above the
-horizon with every output measured), and the angular
-parametrisations ``RUSIN_TH_PH_TD_PD``, ``ISOTROPIC_TV_TL_DPHI``, ``SPHERICAL_TL_PL_TV_PV`` and
-``CARTESIAN``, are scattered samples (brdfcl.data.samples).  ALTA names the first direction of a
-row the view and the second the light; an isotropic BRDF is reciprocal, so brdfcl reads them as
-(wi, wo) either way.
+horizon with every output measured), and every other parametrisation of
+brdfcl.data.alta_params (``COS_TH``, ``COS_TH_TD``, ``RUSIN_TH_TD``, ``RUSIN_TH_PH_TD_PD``,
+``ISOTROPIC_TV_TL_DPHI``, ``ISOTROPIC_TL_TV_PROJ_DPHI``, ``SPHERICAL_TL_PL_TV_PV``,
+``CARTESIAN``; that module gives each convention), are scattered samples
+(brdfcl.data.samples).  A ``COS_TH`` file (a 1-D slice) places every sample as ALTA does, at
+theta_d = 0: wi = wo = h.
 
 Outputs: ``RGB_COLOR`` (a BRDF in 1/sr per R, G, B, at the MERL channels' wavelengths) and
-``INV_STERADIAN`` (one channel, at 0.55 um).  Negative values mark missing cells, as in MERL
-files.  A malformed file is one ``DataError`` line naming the file, the line and the problem.
+``INV_STERADIAN`` (one channel, at 0.55 um).  A file without ``#PARAM_OUT`` (ALTA's
+UNKNOWN_OUTPUT) and one output is read as ``INV_STERADIAN``: ALTA's retro-reflection
+measurements are written so.  Negative values mark missing cells, as in MERL files.  ALTA's
+retro-reflection data come as ``.dat`` files: ``read_alta_dat`` reads a ``.dat`` whose header
+has ALTA's ``#DIM`` and refuses any other.  A malformed file is one ``DataError`` line naming
+the file, the line and the problem.
 """
 from __future__ import annotations
 
 import os
+from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
 
 from brdfcl._words import count
+from brdfcl.data.alta_params import PARAMS, directions
 from brdfcl.data.errors import DataError, read_text
 from brdfcl.data.geometry import DEFAULT_CUTOFF_DEG, coarse_cells, grid_directions, rusinkiewicz
 from brdfcl.data.measurement import Channel, Layout, Measurement, rgb_channels
 from brdfcl.data.samples import make_samples
 
-INPUTS = {"RUSIN_TH_TD_PD": 3, "RUSIN_TH_PH_TD_PD": 4, "ISOTROPIC_TV_TL_DPHI": 3, "SPHERICAL_TL_PL_TV_PV": 4,
-          "CARTESIAN": 6}
-"""The input parametrisations read, with their number of coordinates."""
 OUTPUTS = {"RGB_COLOR": rgb_channels(), "INV_STERADIAN": (Channel("BRDF", 0.55),)}
 """The outputs read, with the channels they give."""
+DEFAULT_OUTPUT = "INV_STERADIAN"
+"""What a file without #PARAM_OUT holds when it has one output (ALTA's UNKNOWN_OUTPUT: ALTA's
+retro-reflection measurements are BRDF values in 1/sr written so)."""
 
 class GridLayout(Layout):
     """The cells of a regular (theta_h, theta_d, phi_d) grid, numbered theta_h slowest: each at its
@@ -126,39 +133,84 @@ class AltaTable(Measurement):
             o[...] = self.values[:, idx]
 
 
-def read_alta(path: str | os.PathLike[str]) -> Measurement:
-    """Read an ALTA text data file: an AltaTable where its RUSIN_TH_TD_PD rows fill a regular
-    grid, else scattered Samples; DataError (one line: file, line, problem) if malformed."""
+@dataclass(frozen=True)
+class AltaRows:
+    """An ALTA file's rows as written: the coordinates ``x`` (n, inputs) in ``param_in``, the
+    values (n, outputs; NaN where negative, i.e. missing) in ``param_out`` and the line of each row."""
+
+    path: str
+    param_in: str
+    param_out: str
+    channels: tuple[Channel, ...]
+    x: np.ndarray
+    values: np.ndarray
+    lines: np.ndarray
+
+    def directions(self) -> tuple[np.ndarray, np.ndarray]:
+        """The two directions (n, 3) of each row (brdfcl.data.alta_params)."""
+        return directions(self.param_in, self.x)
+
+
+def read_rows(path: str | os.PathLike[str]) -> AltaRows:
+    """The rows of an ALTA text data file, checked against its header; DataError (one line:
+    file, line, problem) if malformed or in a parametrisation brdfcl does not read."""
     path = os.fspath(path)
     header, first, rows = _split(path, read_text(path))
+    if header.get("FORMAT", "text").lower() != "text":
+        raise DataError(path, f"#FORMAT {header['FORMAT']}: brdfcl reads ALTA's text data files only")
     n_in, n_out = _dim(path, header)
+    if not any(ln.strip() and not ln.lstrip().startswith("#") for ln in rows):
+        raise DataError(path, "no data rows after the header (a file cut short?)")
     param_in, param_out = header.get("PARAM_IN", ""), header.get("PARAM_OUT", "")
-    if param_in not in INPUTS:
-        raise DataError(path, f"#PARAM_IN {param_in or '(none)'}: brdfcl reads {', '.join(INPUTS)}")
+    if param_in not in PARAMS:
+        raise DataError(path, f"#PARAM_IN {param_in or '(none)'}: brdfcl reads {', '.join(PARAMS)}")
+    if not param_out and n_out == 1:
+        param_out = DEFAULT_OUTPUT
     if param_out not in OUTPUTS:
-        raise DataError(path, f"#PARAM_OUT {param_out or '(none)'}: brdfcl reads {', '.join(OUTPUTS)}")
+        raise DataError(path, f"#PARAM_OUT {param_out}: brdfcl reads {', '.join(OUTPUTS)}" if param_out else
+                        f"no #PARAM_OUT and {count(n_out, 'output')}: without one brdfcl reads 1 output, "
+                        f"a BRDF in 1/sr")
     channels = OUTPUTS[param_out]
-    if (n_in, n_out) != (INPUTS[param_in], len(channels)):
-        raise DataError(path, f"#DIM {n_in} {n_out}: {param_in} has {INPUTS[param_in]} inputs and {param_out} "
+    if (n_in, n_out) != (PARAMS[param_in], len(channels)):
+        raise DataError(path, f"#DIM {n_in} {n_out}: {param_in} has {PARAMS[param_in]} inputs and {param_out} "
                               f"{count(len(channels), 'output')}")
     vs_field = header.get("VS", "").split()
     vs = {"2": 2, "1": 1}.get(vs_field[0] if vs_field else "", 0)
-    data = _numbers(path, first, rows, n_in + n_out + vs)[:, :n_in + n_out]
-    x, values = data[:, :n_in], data[:, n_in:]
+    data, lines = _numbers(path, first, rows, n_in + n_out + vs)
+    values = data[:, n_in:n_in + n_out]
     values = np.where(values >= 0, values, np.nan)                   # negative: missing, as in MERL files
-    if param_in == "RUSIN_TH_TD_PD":
+    return AltaRows(path, param_in, param_out, channels, data[:, :n_in], values, lines)
+
+
+def read_alta(path: str | os.PathLike[str]) -> Measurement:
+    """Read an ALTA text data file: an AltaTable where its RUSIN_TH_TD_PD rows fill a regular
+    grid, else scattered Samples; DataError (one line: file, line, problem) if malformed."""
+    rows = read_rows(path)
+    path, x, values, channels = rows.path, rows.x, rows.values, rows.channels
+    if rows.param_in == "RUSIN_TH_TD_PD":
         table = _as_table(path, x, values, channels)
         if table is not None:
             return table
-    wi, wo = _directions(param_in, x)
+    wi, wo = rows.directions()
     keep = (wi[:, 2] > 0) & (wo[:, 2] > 0) & np.isfinite(values).all(axis=1)    # measured, above the horizon
     if not keep.any():
         raise DataError(path, "no sample above the horizon with every value measured (non-negative)")
     wi, wo, values = wi[keep], wo[keep], values[keep]
-    lines = [first + int(k) for k in np.flatnonzero(keep)]
+    lines = [int(k) for k in rows.lines[keep]]
     ti, to = (np.arccos(np.clip(w[:, 2], -1, 1)) for w in (wi, wo))
     return make_samples(path, ti, np.arctan2(wi[:, 1], wi[:, 0]), to, np.arctan2(wo[:, 1], wo[:, 0]),
                         values, channels, lines=lines)
+
+
+def read_alta_dat(path: str | os.PathLike[str]) -> Measurement:
+    """A ``.dat`` file read as ALTA's (ALTA's retro-reflection data are ``.dat``), once its header
+    shows it is one: a ``.dat`` of any other kind is a DataError saying so, not a misreading."""
+    path = os.fspath(path)
+    header, _, _ = _split(path, read_text(path))
+    if "DIM" not in header:
+        raise DataError(path, "not an ALTA data file (no #DIM header line): brdfcl reads a .dat file only in "
+                              "ALTA's text format")
+    return read_alta(path)
 
 
 def _split(path: str, text: str) -> tuple[dict, int, list[str]]:
@@ -184,9 +236,10 @@ def _dim(path: str, header: dict) -> tuple[int, int]:
     return n_in, n_out
 
 
-def _numbers(path: str, first: int, lines: list[str], width: int) -> np.ndarray:
-    """(rows, width) float64 of the body's lines (blank and '#' lines skipped; columns beyond
-    ``width`` ignored); DataError at the first line that is short or not numbers."""
+def _numbers(path: str, first: int, lines: list[str], width: int) -> tuple[np.ndarray, np.ndarray]:
+    """((rows, width) float64 of the body's lines, the line number of each) (blank and '#' lines
+    skipped; columns beyond ``width`` ignored); DataError at the first line that is short or not
+    numbers."""
     kept = [(first + k, ln.split()) for k, ln in enumerate(lines) if ln.strip() and not ln.lstrip().startswith("#")]
     if not kept:
         raise DataError(path, "no data rows after the header")
@@ -202,7 +255,7 @@ def _numbers(path: str, first: int, lines: list[str], width: int) -> np.ndarray:
     bad = ~np.isfinite(out).all(axis=1)
     if bad.any():
         raise DataError(path, "a value is NaN or infinite: values must be finite numbers", kept[int(np.argmax(bad))][0])
-    return out
+    return out, np.array([k for k, _ in kept])
 
 
 def _is_number(x: str) -> bool:
@@ -222,8 +275,8 @@ def _as_table(path: str, x: np.ndarray, values: np.ndarray, channels) -> AltaTab
     combination once); None otherwise."""
     axes, where = [], []
     for c in range(3):
-        a, inv = np.unique(np.round(x[:, c], 9), return_inverse=True)
-        axes.append(a)
+        _, first, inv = np.unique(np.round(x[:, c], 9), return_index=True, return_inverse=True)
+        axes.append(x[first, c])                    # the values as written, not their rounding
         where.append(inv.ravel())
     shape = tuple(a.size for a in axes)
     if np.prod(shape) != x.shape[0] or min(shape) < 2:
@@ -244,24 +297,5 @@ def _as_table(path: str, x: np.ndarray, values: np.ndarray, channels) -> AltaTab
     return AltaTable(path, layout, grid, channels)
 
 
-def _directions(param: str, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(first direction, second direction) (n, 3) of each row in an angular parametrisation."""
-    def unit(t, p):
-        return np.stack([np.sin(t) * np.cos(p), np.sin(t) * np.sin(p), np.cos(t)], axis=1)
-    if param in ("RUSIN_TH_TD_PD", "RUSIN_TH_PH_TD_PD"):
-        th, ph, td, pd = (x[:, 0], np.zeros(len(x)), x[:, 1], x[:, 2]) if x.shape[1] == 3 else x.T
-        d = unit(td, pd)
-        ct, st, cp, sp = np.cos(th), np.sin(th), np.cos(ph), np.sin(ph)
-        a = np.stack([d[:, 0] * ct + d[:, 2] * st, d[:, 1], -d[:, 0] * st + d[:, 2] * ct], axis=1)   # Ry(th) d
-        a = np.stack([a[:, 0] * cp - a[:, 1] * sp, a[:, 0] * sp + a[:, 1] * cp, a[:, 2]], axis=1)      # Rz(ph)
-        h = unit(th, ph)
-        return a, 2 * np.sum(a * h, axis=1, keepdims=True) * h - a
-    if param == "ISOTROPIC_TV_TL_DPHI":
-        return unit(x[:, 0], np.zeros(len(x))), unit(x[:, 1], x[:, 2])
-    if param == "SPHERICAL_TL_PL_TV_PV":
-        return unit(x[:, 2], x[:, 3]), unit(x[:, 0], x[:, 1])
-    a, b = x[:, :3], x[:, 3:6]                                           # CARTESIAN
-    return a / np.linalg.norm(a, axis=1, keepdims=True), b / np.linalg.norm(b, axis=1, keepdims=True)
-
-
 read_alta.format_name = "ALTA {} files"  # type: ignore[attr-defined]
+read_alta_dat.format_name = "ALTA {} files"  # type: ignore[attr-defined]

@@ -16,7 +16,7 @@ import os
 from collections.abc import Callable
 from pathlib import Path
 
-from .alta import read_alta
+from .alta import read_alta, read_alta_dat
 from .cornell import read_cornell
 from .csvsamples import read_csv
 from .errors import DataError
@@ -30,6 +30,7 @@ READERS: dict[str, Reader] = {
     ".binary": open_merl,
     ".brdf": read_cornell,
     ".csv": read_csv,
+    ".dat": read_alta_dat,          # refuses a .dat that is not ALTA's, in one line
 }
 """Suffix -> reader.  The hook for more formats: add an entry."""
 

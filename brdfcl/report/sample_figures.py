@@ -33,17 +33,29 @@ def bands_to_show(lambdas, n=MAX_BANDS) -> list[int]:
     return sorted(set(np.linspace(0, len(lambdas) - 1, min(n, len(lambdas))).round().astype(int).tolist()))
 
 
+def incidence_first(samples) -> tuple[np.ndarray, np.ndarray]:
+    """(theta of the incidence, theta of the other direction) of each sample, radians: the
+    direction an instrument held fixed is the incidence, the one with fewer distinct angles (by
+    reciprocity either of wi, wo may be; ALTA files, for one, write the light second)."""
+    ti, to = samples.theta_i, samples.theta_o
+    if np.unique(np.round(to, 4)).size < np.unique(np.round(ti, 4)).size:
+        return to, ti
+    return ti, to
+
+
 def in_plane(samples, tol_deg=IN_PLANE_DEG):
     """(mask, signed theta_o in degrees) of the samples in the plane of incidence: theta_o > 0 on
-    the specular side (phi_o = phi_i + 180 deg), < 0 on the side of the light."""
+    the specular side (phi_o = phi_i + 180 deg), < 0 on the side of the light (theta_o: the angle
+    of the direction that is not the incidence, ``incidence_first``)."""
     d = np.degrees(np.mod(samples.phi_o - samples.phi_i + np.pi, 2 * np.pi) - np.pi)
     fwd, back = np.abs(np.abs(d) - 180) <= tol_deg, np.abs(d) <= tol_deg
-    return fwd | back, np.where(back, -1.0, 1.0) * np.degrees(samples.theta_o)
+    return fwd | back, np.where(back, -1.0, 1.0) * np.degrees(incidence_first(samples)[1])
 
 
 def incidence_panels(samples, mask, n=MAX_PANELS) -> list[float]:
-    """Up to n incidence angles (radians) with in-plane samples, spread over their range."""
-    ti = np.round(samples.theta_i[mask], 4)
+    """Up to n incidence angles (radians, ``incidence_first``) with at least 3 in-plane samples,
+    spread over their range."""
+    ti = np.round(incidence_first(samples)[0][mask], 4)
     values, counts = np.unique(ti, return_counts=True)
     values = values[counts >= 3]
     if values.size == 0:
@@ -71,8 +83,9 @@ def _in_plane_figure(plt, what):
     ncol = max(len(panels), 1)
     fig, axes = plt.subplots(1, ncol, figsize=(FS.FIG_WIDTH, 5.0), constrained_layout=True, squeeze=False)
     grid = np.linspace(-89.0, 89.0, 713)
+    incidence = incidence_first(samples)[0]
     for ax, ti in zip(axes[0], panels):
-        here = mask & (np.abs(samples.theta_i - ti) < 1e-4)
+        here = mask & (np.abs(incidence - ti) < 1e-4)
         fitted = model_in_plane(model, params, ti, grid)
         for c in bands:
             col = wavelength_colour(lam[c])
@@ -89,16 +102,39 @@ def _in_plane_figure(plt, what):
         ax.set_xlabel(r"$\theta_o$ (degrees)")
         ax.grid(True, which="major", color="0.9", lw=0.8)
     if not panels:
-        axes[0, 0].text(0.5, 0.5, "no samples in the plane of incidence", ha="center", va="center",
-                        transform=axes[0, 0].transAxes)
+        _along_theta_h(axes[0, 0], samples, model, params, bands)
     axes[0, 0].set_ylabel("BRDF (1/sr), log scale")
     h, labels = axes[0, 0].get_legend_handles_labels()
     if h:
-        fig.legend(h, labels, loc="outside lower center", ncols=len(bands), frameon=False,
-                   title="points: measured samples; lines: the fitted model; dotted: the mirror direction; "
-                         r"$\theta_o$ < 0: on the side of the light")
+        key = ("points: measured samples; lines: the fitted model; dotted: the mirror direction; "
+               r"$\theta_o$ < 0: on the side of the light") if panels else \
+            "points: measured samples; lines: the fitted model at the same directions"
+        fig.legend(h, labels, loc="outside lower center", ncols=len(bands), frameon=False, title=key)
     fig.suptitle(title)
     return fig
+
+
+def _along_theta_h(ax, samples, model, params, bands):
+    """The panel of samples no incidence angle groups (a 1-D slice, every sample its own
+    incidence): measured and fitted at each sample's own directions, against theta_h."""
+    lam = np.asarray(samples.wavelengths)
+    values = model.only_lobes(params, None) if isinstance(params, dict) else params
+    fitted = model.reference(Cells.from_directions(samples.wi, samples.wo), values, jacobian=False)
+    th = np.degrees(np.arccos(np.clip(Cells.from_directions(samples.wi, samples.wo).ch, -1.0, 1.0)))
+    order = np.argsort(th)
+    for c in bands:
+        col = wavelength_colour(lam[c])
+        v = samples.values[order, c]
+        ok = v > 0
+        ax.plot(th[order][ok], v[ok], "o", ms=4.5, color=col, mec="k", mew=0.3)
+        f = fitted[c][order]
+        ax.plot(th[order], np.where(f > 0, f, np.nan), "-", lw=1.4, color=col, label=f"{lam[c] * 1000:.0f} nm")
+    ax.set_yscale("log")
+    ax.set_xlim(0, 90)
+    ax.set_xlabel(r"$\theta_h$ (degrees)")
+    ax.set_title(f"no incidence angle with 3 samples: all {count(samples.n_samples, 'sample')}, "
+                 "fitted at their own directions")
+    ax.grid(True, which="major", color="0.9", lw=0.8)
 
 
 def figure_in_plane(samples, model, params, path, title=None):

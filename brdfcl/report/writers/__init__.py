@@ -11,6 +11,7 @@ tests/test_writers.py then runs it on a fit job.
 """
 from __future__ import annotations
 
+from brdfcl.report.writers.alta import AltaExport
 from brdfcl.report.writers.analysis_figures import AnalysisFigures
 from brdfcl.report.writers.analysis_index import AnalysisIndex
 from brdfcl.report.writers.analysis_maps import AnalysisMaps
@@ -27,6 +28,7 @@ IMPLEMENTED_WRITERS: dict[str, Writer] = {w.name: w for w in (
     MerlExport(),               # NAME.binary               fit jobs, --export-merl
     BrdfExplorerExport(),       # NAME.brdf                 fit jobs, export="brdf_explorer"
     MitsubaExport(),            # NAME-mitsuba/             fit jobs, export="mitsuba"
+    AltaExport(),               # NAME.alta                 fit jobs, export="alta"
     SummaryCsv(),               # summary.csv               fit jobs (reads every NAME.json)
     AnalysisMaps(),             # NAME.exr                  analyses
     AnalysisFigures(),          # figures/NAME_KIND.png     analyses, unless --no-figures

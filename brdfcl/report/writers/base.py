@@ -17,6 +17,7 @@ fit it tabulates; a resumed run writes a finished fit's missing export without r
 """
 from __future__ import annotations
 
+import os
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -50,11 +51,15 @@ class Item:
     @classmethod
     def of_fit(cls, job: Job, res: Any, extra: dict | None = None) -> Item:
         """The item of a finished FitResult: its NAME.json document made once, for every writer
-        (the run's options recorded in it, ``extra`` added, e.g. the verdict of --select-lobes)."""
+        (the run's options recorded in it, ``extra`` added, e.g. the verdict of --select-lobes,
+        and ``"source"``, the absolute path of the measured file)."""
         lambdas = getattr(res, "lambdas", None)
         doc = result_document(res, job.model(res.model) if lambdas is None else job.model(res.model, lambdas),
                               extra, job.options)
-        return cls(res.name, job.tables.get(res.name), doc)
+        table = job.tables.get(res.name)
+        if table is not None:                     # where an export finds the measured points again
+            doc["source"] = os.path.abspath(table)
+        return cls(res.name, table, doc)
 
 
 @dataclass
