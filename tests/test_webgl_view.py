@@ -83,6 +83,25 @@ def test_desktop_glsl_is_refused():
         to_glsl_es("double f(double x) { return x; }", [])
 
 
+def test_turntable_is_the_table_sphere(demo_db):
+    """The measured spheres beside the live view (each computed on its upper half, mirrored) are
+    brdfcl's table sphere at their light."""
+    from brdfcl.data.merl import read_merl
+    from brdfcl.report.view.images import PLAN
+    from brdfcl.report.view.sphere import render_table_sphere
+    from brdfcl.report.view.views import plan
+    from brdfcl.report.writers.pages import _read_cells
+    p, path = plan(*PLAN), str(demo_db / "synth-rough-metal.binary")
+    images = p.turntable_images(_read_cells(path, p.table_cells))
+    table = read_merl(path)
+    for k in (0, 3, 8):
+        t = np.radians(float(p.turntable[k].label))
+        ref = render_table_sphere(table, [np.sin(t), 0.0, np.cos(t)], size=p.turntable[k].size)
+        assert np.array_equal(np.isnan(images[k]), np.isnan(ref))
+        ok = np.isfinite(ref) & (ref > 0)
+        assert np.max(np.abs(images[k][ok] - ref[ok]) / ref[ok]) < 1e-4
+
+
 # --- in a browser ------------------------------------------------------------------------------
 PROBE = """<script>window.addEventListener('load', function () {
   var out = {};

@@ -119,7 +119,8 @@ class Plan:
     holds every point view's and slice's direction pairs in order, ``in_plane`` the span of the
     in-plane slices (where the lobes are drawn one by one); ``turntable`` the measured-only
     spheres (``turntable_size`` pixels) under a point light at each of ``turntable_deg`` from the
-    view, at azimuth 0 (the page's live view turns them to its light's azimuth)."""
+    view, at azimuth 0 (the page's live view turns them to its light's azimuth), each computed on
+    its upper half and mirrored."""
 
     def __init__(self, lights, size, env_size, turntable_deg=(), turntable_size=96):
         wi_all, wo_all, spheres, n = [], [], [], 0
@@ -156,7 +157,7 @@ class Plan:
         self.turntable, wi_t, wo_t, m = [], [], [], 0
         for deg in turntable_deg:
             t = np.radians(deg)
-            view, wi, wo = _point_view(f"{deg:g}", np.array([np.sin(t), 0.0, np.cos(t)]), turntable_size, m)
+            view, wi, wo = _upper_half_view(f"{deg:g}", np.array([np.sin(t), 0.0, np.cos(t)]), turntable_size, m)
             self.turntable.append(view)
             wi_t.append(wi)
             wo_t.append(wo)
@@ -200,6 +201,28 @@ def plan(lights=None, size=128, env_size=64, turntable_deg=(), turntable_size=96
 def _plan(lights, size, env_size, turntable_deg, turntable_size):
     return Plan([(label, kind, np.array(d)) for label, kind, d in lights], size, env_size, turntable_deg,
                 turntable_size)
+
+
+@dataclass
+class MirroredView(PointView):
+    """A sphere under a light in the x-z plane, whose upper half (``lit``: pixels there) is
+    computed and mirrored: the image is symmetric about y = 0 for an isotropic BRDF."""
+
+    def image(self, values):
+        out = super().image(values)
+        half = self.size // 2
+        out[self.size - half:] = out[:half][::-1]
+        return out
+
+
+def _upper_half_view(label, light, size, first):
+    """`_point_view` of a light in the x-z plane and an even ``size``: its pixels in the upper half."""
+    assert light[1] == 0 and size % 2 == 0, "a mirrored view needs a light in the x-z plane and an even size"
+    view, wi, wo = _point_view(label, light, size, first)
+    top = view.lit < int(view.inside.sum()) // 2          # the inside pixels in order: the upper rows first
+    lit, cos = view.lit[top], view.cos[top]
+    return (MirroredView(label, view.light, size, view.inside, lit, cos, slice(first, first + lit.size)),
+            wi[top], wo[top])
 
 
 def _point_view(label, light, size, first):
