@@ -27,7 +27,9 @@ SPECS = ["diffuse+diffraction:hp+ggx:smith:schlick",
          "diffuse+diffraction:gauss:schlick+sgd:vcavity:none",
          "epd:none:dielectric",
          "ggx:smith-hc:conductor",
-         "diffuse+beckmann:smith:schlick"]
+         "diffuse+beckmann:smith:schlick",
+         "diffuse+diffraction:hp:none+abc:smith:schlick",     # the default fit's forms (ABC's Smith
+         "diffuse+diffraction:hp:none+gtr:smith:dielectric"]  # term casts a negative literal)
 
 
 def _values(model, rng):

@@ -60,7 +60,10 @@ def test_page_loads_in_chromium_without_errors(run, page):
     assert found, r.stderr[-1500:]
     n, bad, which = int(found.group(1)), int(found.group(2)), found.group(3)
     assert n >= (len(NAMES) if page == "index" else 5) and bad == 0, which
-    console = [ln for ln in r.stderr.splitlines() if "CONSOLE" in ln]
+    # Chromium's own notes on a WebGL context (software rendering, a synchronous readPixels) are
+    # not the page's messages
+    console = [ln for ln in r.stderr.splitlines() if "CONSOLE" in ln and not any(
+        note in ln for note in ("Automatic fallback to software WebGL", "GPU stall due to ReadPixels"))]
     assert not console, console
 
 

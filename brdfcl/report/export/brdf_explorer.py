@@ -125,7 +125,7 @@ def _translate_code(src):
     src = re.sub(r"(^|[;{]\s*)\*(\w+)\s*=", r"\1\2 =", src, flags=re.M)           # *d = ...
     src = re.sub(r"(?<![\w)&\]])&(?=[A-Za-z_])", "", src)                          # &x -> x
     src = _expand_sel(src)
-    src = re.sub(r"\((real_v|real)\)\s*(\d+\.?\d*(?:[eE][-+]?\d+)?|\w+)", r"\1(\2)", src)
+    src = re.sub(r"\((real_v|real)\)\s*(-?\s*(?:\d+\.?\d*(?:[eE][-+]?\d+)?|\w+))", r"\1(\2)", src)
     src = re.sub(r"\((real_v|real)\)\s*\(", r"\1(", src)                             # (real)(x) -> real(x)
     src = re.sub(r"\bconst\s+", "", src)
     src = re.sub(r"\bfmin\s*\(", "min(", src)

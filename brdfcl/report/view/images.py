@@ -2,7 +2,7 @@
 
 A material's images live in ``OUT/report/NAME/`` with a ``.stamp`` naming the fit and table
 they show (and the sphere images' captions); a report draws again only the materials whose
-stamp differs.  Tables: the lit spheres, thumbnail and slices (brdfcl.report.view.material),
+stamp differs.  Tables: the lit spheres, thumbnail, measured turntable and slices (brdfcl.report.view.material),
 the fits of one model evaluated together on the engine and the drawing spread over a process
 per core (brdfcl.report.view.drawer); scattered samples: the in-plane figure
 (brdfcl.report.sample_figures).
@@ -25,7 +25,9 @@ from brdfcl.report.view.views import plan as view_plan
 _log = logging.getLogger("brdfcl")
 # key, grazing and environment light
 REPORT_LIGHTS = tuple(light for light in DEFAULT_LIGHTS if light[0] in ("key", "grazing", "env"))
-PLAN = (REPORT_LIGHTS, 128, 64)   # brdfcl.report.view.views.plan: lights, sphere size, environment size
+TURNTABLE_DEG = tuple(range(0, 180, 15))    # the live view's measured spheres: light angles from the view
+# brdfcl.report.view.views.plan: lights, sphere size, environment size, turntable angles and size
+PLAN = (REPORT_LIGHTS, 128, 64, TURNTABLE_DEG, 96)
 PER_WORKER = 12                   # materials a worker process must have to be worth starting
 DRAW_PROCESSES = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
 
@@ -139,5 +141,6 @@ def _classify(paths, name, captions=None):
     return {"thumb": [p for p in images if p.name == f"{name}-thumb.png"],
             "spheres": [p for p in images if "-sphere-" in p.name],
             "slices": [p for p in images if p.name.endswith(("-slices.svg", "-lobes.svg", "-slices.png"))],
+            "turntable": [p for p in images if p.name == f"{name}-turntable.png"],
             "exr": [Path(p) for p in paths if str(p).endswith(".exr")],
             "captions": captions or {}}

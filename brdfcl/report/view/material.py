@@ -1,14 +1,25 @@
-"""The report images of measured tables and their fits: lit spheres (PNG and EXR), a thumbnail
-and the slice figures (SVG), from one Plan of every view (brdfcl.report.view.views) and the fits
-evaluated for many materials at once (brdfcl.report.view.evaluate).
+"""The report images of measured tables and their fits: lit spheres (PNG and EXR), a thumbnail,
+the measured turntable of the page's live view and the slice figures (SVG), from one Plan of
+every view (brdfcl.report.view.views) and the fits evaluated for many materials at once
+(brdfcl.report.view.evaluate).
 """
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
+from brdfcl.report.files import atomic_write_text
 from brdfcl.report.view.evaluate import Evaluator, Fitted
 from brdfcl.report.view.slices import write_slice_figures
-from brdfcl.report.view.sphere import DEFAULT_LIGHTS, ENV_SIZE, as_model, write_sphere_images
+from brdfcl.report.view.sphere import (
+    DEFAULT_LIGHTS,
+    ENV_SIZE,
+    as_model,
+    exposure,
+    panels,
+    write_png,
+    write_sphere_images,
+)
 from brdfcl.report.view.views import plan as view_plan
 
 
@@ -34,7 +45,24 @@ def write_material(out_dir, name, values, model, fitted: Fitted, plan):
     fit = plan.images(fitted.points, fitted.env)
     lights = [(v.label, v.kind, v.light) for v in plan.spheres]
     paths, captions = write_sphere_images(out_dir, name, model.spec, lights, measured, fit)
+    if plan.turntable:
+        paths += write_turntable(out_dir, name, plan, values, exposure(measured[lights[0][0]]))
     return paths + write_slice_figures(out_dir, name, model, curves(plan, at_points, fitted)), captions
+
+
+def write_turntable(out_dir, name, plan, values, scale):
+    """The measured table's spheres under a point light at each of the plan's turntable angles
+    from the view (azimuth 0), side by side in ``NAME-turntable.png`` (sRGB at ``scale``, the
+    first light's exposure; black off the sphere, as the live view), and what they are in
+    ``NAME-turntable.json`` (angles, their step, white in 1/sr): the page's live view shows the
+    one nearest its light, turned to its azimuth (brdfcl.report.view.webgl)."""
+    png = Path(out_dir) / f"{name}-turntable.png"
+    write_png(png, panels(plan.turntable_images(values), scale, gap=0, background=0.0))
+    angles = [float(v.label) for v in plan.turntable]
+    step = angles[1] - angles[0] if len(angles) > 1 else 0.0
+    info = {"angles": [round(a, 3) for a in angles], "step": round(step, 3), "white": 1.0 / scale}
+    atomic_write_text(png.with_suffix(".json"), json.dumps(info))
+    return [png, png.with_suffix(".json")]
 
 
 def write_images(out_dir, name, table, model, values, lights=DEFAULT_LIGHTS, size=160, env_size=ENV_SIZE,

@@ -3,9 +3,10 @@
 ``OUT/report/index.html`` holds a table of every material (sphere thumbnails, errors in each
 metric, parameters, verdict where the run analysed, flags) that sorts on a click on its
 header; ``OUT/report/NAME.html`` shows one material at a readable size: parameters with their
-standard errors, directional albedo, flags, lit spheres (measured | fitted | difference),
-slices and the analysis figures where there are some.  Plain files that work offline: no
-script or style from elsewhere.  `brdfcl fit-all` and `brdfcl analyze` both write it (through
+standard errors, directional albedo, flags, a live view of the fit (WebGL 2, with the measured
+table's sphere at the nearest light drawn: brdfcl.report.view.webgl), lit spheres (measured |
+fitted | difference), slices and the analysis figures where there are some.  Plain files that
+work offline: no script or style from elsewhere.  `brdfcl fit-all` and `brdfcl analyze` both write it (through
 brdfcl.report.writers.pages); the images come from brdfcl.report.view.images.  The two pages
 share their table cells, number formats and file writing, and nothing else uses them.
 """
@@ -21,6 +22,7 @@ from brdfcl.model.compose import Model
 from brdfcl.optim.selection import PENALTY
 from brdfcl.report.files import writing
 from brdfcl.report.view.images import draw_images
+from brdfcl.report.view.webgl import view_html
 
 METRICS = ("rmse_log", "rmse_l2", "rmse_cbrt", "rel_rmse")    # first, in this order; then any other
 
@@ -185,6 +187,7 @@ def material_page(e, images, rep) -> str:
     h.append("<h2>Parameters</h2>" + _param_table(e))
     if e.albedo:
         h.append("<h2>Directional albedo of the fit</h2>" + _albedo_table(e.albedo, e.fitted_model().channels))
+    h.append(view_html(e, images, rep))
     slices = ("Slices: BRDF x cos against the outgoing angle, and the lobes" if e.table is None or e.tabulated
               else "Measured samples and the fit in the plane of incidence")
     for key, head in (("spheres", "Lit spheres: measured | fitted | difference"), ("slices", slices)):

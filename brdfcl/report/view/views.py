@@ -117,9 +117,12 @@ class Plan:
     """The report's views (see the module's docstring): ``spheres`` (key, grazing, environment
     at the sizes given) and the ``slices``; ``cells``
     holds every point view's and slice's direction pairs in order, ``in_plane`` the span of the
-    in-plane slices (where the lobes are drawn one by one)."""
+    in-plane slices (where the lobes are drawn one by one); ``turntable`` the measured-only
+    spheres (``turntable_size`` pixels) under a point light at each of ``turntable_deg`` from the
+    view, at azimuth 0 (the page's live view turns them to its light's azimuth), each computed on
+    its upper half and mirrored."""
 
-    def __init__(self, lights, size, env_size):
+    def __init__(self, lights, size, env_size, turntable_deg=(), turntable_size=96):
         wi_all, wo_all, spheres, n = [], [], [], 0
         views = [(label, kind, d, min(size, env_size) if kind == "env" else size) for label, kind, d in lights]
         for label, kind, d, s in views:
@@ -151,10 +154,20 @@ class Plan:
         self.env_cells = np.unique(np.concatenate([v.cells for v in envs] + [np.zeros(0, dtype=np.int64)]))
         for v in envs:
             v.columns = np.searchsorted(self.env_cells, v.cells)
-        self.table_cells = np.unique(np.concatenate([self.corners[0].ravel(), self.env_cells]))
+        self.turntable, wi_t, wo_t, m = [], [], [], 0
+        for deg in turntable_deg:
+            t = np.radians(deg)
+            view, wi, wo = _upper_half_view(f"{deg:g}", np.array([np.sin(t), 0.0, np.cos(t)]), turntable_size, m)
+            self.turntable.append(view)
+            wi_t.append(wi)
+            wo_t.append(wo)
+            m += len(wi)
+        turn = corners(np.concatenate(wi_t), np.concatenate(wo_t)) if m else (np.zeros((8, 0), np.int64),) * 2
+        self.table_cells = np.unique(np.concatenate([self.corners[0].ravel(), self.env_cells, turn[0].ravel()]))
         """Every table cell a view reads: a report gathers only these of each table."""
         self._corners_at = (np.searchsorted(self.table_cells, self.corners[0]), self.corners[1])
         self._env_at = np.searchsorted(self.table_cells, self.env_cells)
+        self._turn_at = (np.searchsorted(self.table_cells, turn[0]), turn[1])
 
     def table_values(self, table):
         """A table's BRDF (3, len(table_cells)) at ``table_cells``: ``table`` a MerlTable or a
@@ -168,20 +181,48 @@ class Plan:
         brdfcl.report.view.lookup) and (3, len(env_cells)) at ``env_cells``."""
         return interpolate(values, self._corners_at), values[:, self._env_at]
 
+    def turntable_images(self, values):
+        """Radiance images of the measured-only turntable spheres from a table's `table_values`."""
+        at = interpolate(values, self._turn_at)
+        return [v.image(at) for v in self.turntable]
+
     def images(self, at_points, at_env):
         """{label: radiance image} of every sphere, from values at ``cells`` and at ``env_cells``."""
         return {v.label: v.image(at_env if v.kind == "env" else at_points) for v in self.spheres}
 
 
-def plan(lights=None, size=128, env_size=64) -> Plan:
+def plan(lights=None, size=128, env_size=64, turntable_deg=(), turntable_size=96) -> Plan:
     """The Plan of these views (sphere.DEFAULT_LIGHTS' form), made once per process."""
     key = tuple((label, kind, tuple(float(x) for x in d)) for label, kind, d in lights or sphere.DEFAULT_LIGHTS)
-    return _plan(key, size, env_size)
+    return _plan(key, size, env_size, tuple(float(a) for a in turntable_deg), turntable_size)
 
 
 @lru_cache(maxsize=4)
-def _plan(lights, size, env_size):
-    return Plan([(label, kind, np.array(d)) for label, kind, d in lights], size, env_size)
+def _plan(lights, size, env_size, turntable_deg, turntable_size):
+    return Plan([(label, kind, np.array(d)) for label, kind, d in lights], size, env_size, turntable_deg,
+                turntable_size)
+
+
+@dataclass
+class MirroredView(PointView):
+    """A sphere under a light in the x-z plane, whose upper half (``lit``: pixels there) is
+    computed and mirrored: the image is symmetric about y = 0 for an isotropic BRDF."""
+
+    def image(self, values):
+        out = super().image(values)
+        half = self.size // 2
+        out[self.size - half:] = out[:half][::-1]
+        return out
+
+
+def _upper_half_view(label, light, size, first):
+    """`_point_view` of a light in the x-z plane and an even ``size``: its pixels in the upper half."""
+    assert light[1] == 0 and size % 2 == 0, "a mirrored view needs a light in the x-z plane and an even size"
+    view, wi, wo = _point_view(label, light, size, first)
+    top = view.lit < int(view.inside.sum()) // 2          # the inside pixels in order: the upper rows first
+    lit, cos = view.lit[top], view.cos[top]
+    return (MirroredView(label, view.light, size, view.inside, lit, cos, slice(first, first + lit.size)),
+            wi[top], wo[top])
 
 
 def _point_view(label, light, size, first):
