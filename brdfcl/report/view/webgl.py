@@ -22,6 +22,7 @@ import os
 from functools import lru_cache
 from pathlib import Path
 
+from brdfcl._words import count
 from brdfcl.report.export.glsl_es import ES_HEADER, es_brdf_source, uniforms
 
 FIRST_LIGHT = (45.0, 135.0)       # deg from the view, azimuth: the static key light (-0.5, 0.5, 0.71)
@@ -86,8 +87,8 @@ def view_html(entry, images, rep) -> str:
     """The page's "Live view" section (heading, canvases, controls, shader and script)."""
     model = entry.fitted_model()
     if model.n_channels != 3:
-        return (f"<h2>Live view</h2><p>The live view draws RGB fits; this fit has {model.n_channels} "
-                "channels.</p>")
+        return (f"<h2>Live view</h2><p>The live view draws RGB fits; this fit has "
+                f"{count(model.n_channels, 'channel')}.</p>")
     values = [entry.params[n] for n in model.names]
     cfg, missing = config(entry, model, images, rep)
     measured = ""
