@@ -349,9 +349,6 @@ def cmd_export(args):
     for name, path in wanted.items():
         if path:
             print(f"wrote {writers[name].export(Path(path), fit.doc, job)}")
-            if name == "mitsuba":
-                from brdfcl.report.export.mitsuba_scene import builtin_mapping
-                print(f"Mitsuba's own BSDFs: {builtin_mapping(fit.model, fit.values).note}")
     return 0
 
 
@@ -510,14 +507,12 @@ def build_parser():
     p.add_argument("--brdf-explorer", metavar="PATH", help="write a BRDF Explorer .brdf file (analytic GLSL)")
     p.add_argument("--merl", metavar="PATH", help="write the fitted model tabulated as a MERL .binary")
     p.add_argument("--mitsuba", metavar="DIR",
-                   help="write Mitsuba 3 files into DIR: NAME.xml, NAME-scene.xml, NAME.py and, where the fit "
-                        "maps onto Mitsuba's own BSDFs, NAME-builtin.xml and NAME-builtin-scene.xml")
+                   help="write Mitsuba 3 files into DIR: the fit (NAME.json), NAME.xml, NAME-scene.xml, NAME.py "
+                        "and, where the fit maps onto Mitsuba's own BSDFs, NAME-builtin.xml, "
+                        "NAME-builtin-scene.xml and their textures (docs/mitsuba.md)")
     p.add_argument("--alta", metavar="PATH",
-                   help="write the fitted model as an ALTA data file (float64 reference values): at the "
-                        "points of the measurement the fit was made from when NAME.json records it "
-                        "(\"source\") and it is readable (an ALTA file: its rows, parametrisation and "
-                        "outputs; scattered samples: CARTESIAN), else on a RUSIN_TH_TD_PD grid of every "
-                        "third MERL bin centre (30 x 30 x 60)")
+                   help="write the fitted model as an ALTA data file: at the points of the measurement it was "
+                        "fitted to where that is readable, else on a RUSIN_TH_TD_PD grid (docs/outputs.md)")
     p.add_argument("--at", metavar="FILE", help="for --alta: at the points of this ALTA file instead, in its "
                                                 "parametrisation and outputs")
     p.add_argument("--device", default=None, help=f"for --merl: {device_help}")

@@ -13,9 +13,10 @@ then the confidence-interval columns of the first output::
 
 Angles are radians.  ``RUSIN_TH_TD_PD`` rows are (theta_h, theta_d, phi_d) with phi_h = 0, the
 construction of brdfcl.data.geometry.directions; ALTA exports a MERL table this way (every bin
-centre, phi_d in (0, pi)).  Rows that form a full regular grid (every combination of each axis'
-values, once) are a table: a `GridLayout` of that grid, dense, with a lookup, so that the
-analysis and the report read it as they read a MERL table.  Any other rows (those above the
+centre, phi_d in (0, pi)).  Rows that form a regular grid (every combination of each axis'
+values once, those below the horizon possibly left out) are a table: a `GridLayout` of that
+grid, dense, with a lookup, so that the analysis and the report read it as they read a MERL
+table.  Any other rows (those above the
 horizon with every output measured), and every other parametrisation of
 brdfcl.data.alta_params (``COS_TH``, ``COS_TH_TD``, ``RUSIN_TH_TD``, ``RUSIN_TH_PH_TD_PD``,
 ``ISOTROPIC_TV_TL_DPHI``, ``ISOTROPIC_TL_TV_PROJ_DPHI``, ``SPHERICAL_TL_PL_TV_PV``,
@@ -279,17 +280,22 @@ def _as_table(path: str, x: np.ndarray, values: np.ndarray, channels) -> AltaTab
         axes.append(x[first, c])                    # the values as written, not their rounding
         where.append(inv.ravel())
     shape = tuple(a.size for a in axes)
-    if np.prod(shape) != x.shape[0] or min(shape) < 2:
+    if np.prod(shape) < x.shape[0] or min(shape) < 2:
         return None
     cell = np.ravel_multi_index(where, shape)
     if np.unique(cell).size != cell.size:
         return None
+    if cell.size < np.prod(shape):           # absent rows: only the grid's cells below the horizon
+        wi, wo = grid_directions(*axes)
+        absent = np.setdiff1d(np.arange(np.prod(shape)), cell)
+        if ((wi[absent, 2] > 0) & (wo[absent, 2] > 0)).any():
+            return None
     th, td, pd = axes
     if th[0] < 0 or th[-1] > 0.5 * np.pi + 1e-6 or td[0] < 0 or td[-1] > 0.5 * np.pi + 1e-6 or pd[0] < 0 \
             or pd[-1] > 2 * np.pi + 1e-6:
         raise DataError(path, "RUSIN_TH_TD_PD angles out of range: theta_h, theta_d in [0, pi/2], phi_d in "
                               "[0, 2 pi] (radians)")
-    grid = np.full((len(channels), cell.size), np.nan)
+    grid = np.full((len(channels), int(np.prod(shape))), np.nan)
     grid[:, cell] = values.T
     layout = _grid(*(np.ascontiguousarray(a, dtype=np.float64).tobytes() for a in axes))
     if np.isnan(grid[:, layout.select(None)]).all():

@@ -9,14 +9,15 @@ Where the points come from, first that applies:
    an ALTA file as in 1; scattered samples (Cornell, CSV) as ``CARTESIAN`` pairs of their
    directions.
 3. Otherwise (a MERL table, or no readable source): `DEFAULT_GRID`, ``RUSIN_TH_TD_PD`` at every
-   third MERL bin centre of each axis, a full grid that brdfcl reads back as a table.
+   third MERL bin centre of each axis, less the cells below the horizon (ALTA has no mark of a
+   missing value: its loaders read -1 as data), a grid that brdfcl reads back as a table.
 
 The values are the model's float64 reference (``Model.reference``, the formulas every fit is
-checked against) at each point's two directions (brdfcl.data.alta_params); a pair below the
-horizon has none and is written as missing.  Outputs: a file's own (``RGB_COLOR`` or
-``INV_STERADIAN``); else ``RGB_COLOR`` for a fit of three channels, ``INV_STERADIAN`` for one.
-One output from several channels is their mean (as ALTA converts colours to one value); three
-from one channel repeat it.
+checked against) at each point's two directions (brdfcl.data.alta_params); a file's pair below
+the horizon has none and is written -1, so that the rows stay those of the file.  Outputs: a
+file's own (``RGB_COLOR`` or ``INV_STERADIAN``); else ``RGB_COLOR`` for a fit of three channels,
+``INV_STERADIAN`` for one.  One output from several channels is their mean (as ALTA converts
+colours to one value); three from one channel repeat it.
 """
 from __future__ import annotations
 
@@ -123,10 +124,18 @@ def write_alta_fit(path: str | os.PathLike[str], doc: dict,
     if points.path is not None and path.exists() and os.path.samefile(path, points.path):
         raise ValueError(f"{path}: would overwrite the file whose points it is written at")
     wi, wo = directions(points.param_in, points.x)
-    param_out, values = _outputs(fit.name, fitted_values(fit.model, fit.values, wi, wo), points.param_out)
+    f = fitted_values(fit.model, fit.values, wi, wo)
+    x = points.x
+    if points.path is None:
+        # ALTA has no mark of a missing value (its loaders read -1 as data): a grid of brdfcl's
+        # own leaves out the pairs below the horizon; a file's points are kept row for row
+        keep = np.isfinite(f).all(axis=0)
+        x, f = x[keep], f[:, keep]
+    param_out, values = _outputs(fit.name, f, points.param_out)
     comments = (f"brdfcl fit of {fit.name}: {fit.model.spec}", f"at {points.origin}",
-                "values: the fitted model in 1/sr; -1: no value (below the horizon)")
-    text = alta_text(points.param_in, points.x, values, param_out, comments)
+                "values: the fitted model in 1/sr" + ("; -1: no value (below the horizon), row for row with "
+                                                      "that file" if points.path is not None else ""))
+    text = alta_text(points.param_in, x, values, param_out, comments)
     with writing(path):
         atomic_write_text(path, text)
     return path, points

@@ -36,27 +36,26 @@ from brdfcl._version import __version__
 from brdfcl.kernels.codegen import emit, read_kernel, term_sources
 from brdfcl.kernels.terms import cell_source
 from brdfcl.report.export.fitfile import load_fit
+from brdfcl.report.export.special import erfcc_exponent
 
 GLSL_VERSION = "410"
 
-_HELPERS = """\
-/* OpenCL builtins that GLSL lacks */
+_HELPERS = f"""\
+/* OpenCL builtins that GLSL lacks (brdfcl.report.export.special) */
 float brdfcl_log1p(float x)
-{
+{{
     float u = 1.0 + x;
     return (u == 1.0) ? x : log(u) * (x / (u - 1.0));
-}
+}}
 
 float brdfcl_erfc(float x)
-{
+{{
     /* Numerical Recipes' erfcc: relative error < 1.2e-7 everywhere */
     float z = abs(x);
     float t = 1.0 / (1.0 + 0.5 * z);
-    float r = t * exp(-z * z - 1.26551223 + t * (1.00002368 + t * (0.37409196 + t * (0.09678418
-              + t * (-0.18628806 + t * (0.27886807 + t * (-1.13520398 + t * (1.48851587
-              + t * (-0.82215223 + t * 0.17087277)))))))));
+    float r = t * exp({erfcc_exponent()});
     return (x >= 0.0) ? r : 2.0 - r;
-}
+}}
 
 const float PI_R = 3.14159265358979323846;
 const float INV_PI_R = 0.318309886183790671538;

@@ -133,7 +133,7 @@ class DrjitModel:
                 if scale is not None:
                     v = v * scale.ref(c)
                 for fac in factors:
-                    key = (fac.term.name, fac.channel)
+                    key = (fac.term.kind, fac.term.name, fac.channel)
                     if key not in done:
                         arg = c if fac.arg is None else fac.arg.ref(c)
                         done[key] = self._term(lb, fac.term, arg, fac.channel)

@@ -12,10 +12,9 @@ What the printer maps (Dr.Jit 1.x has neither ``erfc`` nor ``log1p``):
   ``Min`` / ``Max`` -> ``dr.minimum`` / ``dr.maximum``;
 * ``x**2`` ... -> products, ``x**(1/2)`` -> ``dr.sqrt``, ``x**(-1/2)`` -> ``dr.rsqrt``,
   ``x**(-n)`` -> ``1 / ...``, other powers -> ``dr.power``;
-* ``exp``, ``log``, ``sqrt`` -> Dr.Jit's; ``log1p`` -> ``_log1p`` (the ``u = 1 + x`` correction
-  that keeps ln(1 + x) accurate near 0); ``exp_clamped`` -> ``_exp_clamped`` (exp of
-  min(x, EXP_LIMIT)); ``erfc`` -> ``_erfc`` (Numerical Recipes' erfcc, relative error < 1.2e-7,
-  the same fit as the GLSL export's).
+* ``exp``, ``log``, ``sqrt`` -> Dr.Jit's; ``log1p`` -> ``_log1p`` and ``erfc`` -> ``_erfc``
+  (brdfcl.report.export.special, as in the GLSL export); ``exp_clamped`` -> ``_exp_clamped``
+  (exp of min(x, EXP_LIMIT)).
 
 Per-cell quantities other than the five stored ones are printed from their definitions
 (brdfcl.model.terms.symbols.DERIVED) by ``cell_source``.  Both texts are kept in brdfcl's cache
@@ -31,6 +30,7 @@ import sympy as sp
 from sympy.printing.pycode import PythonCodePrinter
 
 from brdfcl.model.terms.symbols import BASE, CELL, DERIVED, EXP_LIMIT, f
+from brdfcl.report.export.special import erfcc_exponent
 
 HELPERS = f'''\
 def _log1p(x):
@@ -45,9 +45,7 @@ def _exp_clamped(x):
 def _erfc(x):
     z = dr.abs(x)
     t = 1.0 / (1.0 + 0.5 * z)
-    r = t * dr.exp(-z * z - 1.26551223 + t * (1.00002368 + t * (0.37409196 + t * (0.09678418
-        + t * (-0.18628806 + t * (0.27886807 + t * (-1.13520398 + t * (1.48851587
-        + t * (-0.82215223 + t * 0.17087277)))))))))
+    r = t * dr.exp({erfcc_exponent()})
     return dr.select(x >= 0.0, r, 2.0 - r)
 '''
 """Functions the printed terms call that Dr.Jit does not have."""
@@ -57,15 +55,22 @@ _FUNCS = {"exp": "dr.exp", "log": "dr.log", "log1p": "_log1p", "exp_clamped": "_
 
 
 class DrJitPrinter(PythonCodePrinter):
-    """SymPy -> Python over Dr.Jit arrays (``import drjit as dr`` in the namespace)."""
+    """SymPy -> Python over Dr.Jit arrays (``import drjit as dr`` in the namespace).  A function
+    class's own ``_pythoncode`` is not used: every function goes through ``_print_Function``, which
+    refuses one it has no Dr.Jit counterpart for."""
+
+    printmethod = "_drjitcode"
+
+    def _print(self, expr, **kwargs):
+        if isinstance(expr, sp.Function) and not isinstance(expr, (sp.Piecewise, sp.Min, sp.Max)):
+            return self._print_Function(expr)
+        return super()._print(expr, **kwargs)
 
     def _print_Function(self, expr):
         name = type(expr).__name__
         if name not in _FUNCS:
             raise ValueError(f"the Dr.Jit printer has no function for {name}")
         return f"{_FUNCS[name]}({', '.join(self._print(a) for a in expr.args)})"
-
-    _print_exp = _print_log = _print_log1p = _print_erfc = _print_exp_clamped = _print_Abs = _print_Function
 
     def _print_Piecewise(self, expr):
         *pairs, (last, cond) = expr.args

@@ -13,8 +13,9 @@ fit result::
 evaluates the fitted lobes with the functions printed from the terms' formulas in Dr.Jit
 (brdfcl.report.export.drjit_model; the same formulas as the kernels and the float64 reference):
 vectorised over a wavefront in the JIT variants (``llvm_ad_rgb``, ``cuda_ad_rgb``), per ray in the
-scalar ones, and differentiable in the ``_ad_`` variants.  The fitted parameters are scene
-parameters, named as in NAME.json with ``.`` written ``_`` (``ct.alpha`` -> ``ct_alpha``)::
+scalar ones, and differentiable in the ``_ad_`` variants.  In the JIT variants the fitted
+parameters are scene parameters, named as in NAME.json with ``.`` written ``_`` (``ct.alpha`` ->
+``ct_alpha``)::
 
     params = mi.traverse(scene)
     key = "sphere.bsdf.ct_alpha"
@@ -38,14 +39,15 @@ except ImportError as _e:  # pragma: no cover - depends on the environment
         "brdfcl.report.export.mitsuba needs Mitsuba 3, which is not installed: "
         'pip install "brdfcl[mitsuba]"  (the mitsuba package from PyPI)') from _e
 
-import math
+from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
 
+from brdfcl._words import count
 from brdfcl.report.export.drjit_model import DrjitModel, cells, ndf_density
 from brdfcl.report.export.fitfile import load_fit
-from brdfcl.report.export.sampling import Sampler
+from brdfcl.report.export.sampling import Sampler, cosine_density, half_vector, half_vector_density
 
 PLUGIN_NAME = "brdfcl"
 LLVM_MIN = (17,)
@@ -87,15 +89,14 @@ def param_key(slot_name: str) -> str:
     return slot_name.replace(".", "_")
 
 
+_DR = SimpleNamespace(sqrt=dr.sqrt, log1p=lambda x: dr.log(1.0 + x), cos=dr.cos, sin=dr.sin)
+"""The functions `half_vector` draws with, in Dr.Jit (which has no log1p: 1 - u is exact in float32
+for the u Mitsuba's samplers give)."""
+
+
 def _half_vector(kind, alpha, u, v):
-    """Half-vectors distributed as D(h) cos(theta_h) for the GGX or Beckmann distribution."""
     u = dr.select(u < _U_MAX, u, _U_MAX)
-    a2 = alpha * alpha
-    t2 = a2 * u / (1.0 - u) if kind == "ggx" else -a2 * dr.log(1.0 - u)
-    ch = dr.rsqrt(1.0 + t2)
-    sh = dr.sqrt(t2) * ch
-    s, c = dr.sincos(2.0 * math.pi * v)
-    return mi.Vector3f(sh * c, sh * s, ch)
+    return mi.Vector3f(*half_vector(kind, alpha, u, v, _DR))
 
 
 def bsdf_class():
@@ -117,8 +118,8 @@ def bsdf_class():
             self.fit_path = str(props["fit"])
             fit = load_fit(_resolve(self.fit_path))
             if fit.model.n_channels != 3:
-                raise ValueError(f"{self.fit_path}: a fit of {fit.model.n_channels} channels; the brdfcl "
-                                 f"BSDF renders fits of 3 (R, G, B)")
+                raise ValueError(f"{self.fit_path}: a fit of {count(fit.model.n_channels, 'channel')}; the "
+                                 f"brdfcl BSDF renders fits of 3 (R, G, B)")
             self.material = fit.name
             self.model = DrjitModel(fit.model, fit.values, mi.Float)
             self.sampler = Sampler(fit.model, fit.values)
@@ -146,10 +147,10 @@ def bsdf_class():
             total = 0.0
             for kind, alpha, weight in self._comps:
                 if kind == "cosine":
-                    p = dr.select(up, wo.z, 0.0) * (1.0 / math.pi)
+                    p = cosine_density(dr.select(up, wo.z, 0.0))
                 else:
                     D = ndf_density(kind, alpha, c.ch, c.t2)
-                    p = dr.select(ok, D * c.ch / (4.0 * dr.select(ok, d, 1.0)), 0.0)
+                    p = dr.select(ok, half_vector_density(D, c.ch, dr.select(ok, d, 1.0)), 0.0)
                 total = total + weight * p
             return dr.select(up, total, 0.0)
 
@@ -184,8 +185,11 @@ def bsdf_class():
             return bs, dr.select(valid, f / dr.select(valid, pdf, 1.0), 0.0)
 
         def traverse(self, callback):
-            for name, value in self.model.params.items():
-                callback.put(param_key(name), value, mi.ParamFlags.Differentiable)
+            # Mitsuba can update a plugin's parameter in place only when it is a Dr.Jit array: in the
+            # scalar variants they are Python floats, so they are not scene parameters there
+            if dr.is_array_v(mi.Float):
+                for name, value in self.model.params.items():
+                    callback.put(param_key(name), value, mi.ParamFlags.Differentiable)
 
         def parameters_changed(self, keys=None):
             self.model.update()

@@ -7,7 +7,9 @@ writes into the folder (nothing here needs Mitsuba installed):
 
 * ``NAME.json``, the fit, and ``NAME.xml``, a scene fragment that declares the BSDF
   ``<bsdf type="brdfcl" id="NAME">`` reading it (include it with ``<include filename="NAME.xml"/>``
-  and use it with ``<ref id="NAME"/>``; the path is resolved from the XML's folder);
+  and use it with ``<ref id="NAME"/>``; its paths are relative to the folder, which Mitsuba
+  searches when it loads a scene file there: a scene elsewhere adds the folder to
+  ``mi.file_resolver()`` first);
 * ``NAME-builtin.xml`` (id ``NAME-builtin``), where the fit maps onto Mitsuba's own BSDFs, which
   render it with no brdfcl installed;
 * ``NAME-scene.xml`` (and ``NAME-builtin-scene.xml``): a complete scene, a unit sphere under a key
@@ -17,13 +19,14 @@ writes into the folder (nothing here needs Mitsuba installed):
 
 The built-in mapping.  Mitsuba has no sum of BSDFs; a ``blendbsdf`` of weight w with the parts
 divided by their weights is one: (1 - w) f_d / (1 - w) + w f_s / w, w = max rho_s / (max rho_s +
-max rho_d).  Mitsuba refuses an ``rgb`` reflectance above 1 (a fit's rho_s may be, where its
-Fresnel reflects less than the material); such a reflectance is written as a 1 x 1 EXR
-(``NAME-reflectance.exr``, ``NAME-specular_reflectance.exr``) read by a ``bitmap`` texture, which
-Mitsuba takes with a warning.  The diffuse lobe is ``diffuse`` (rho / pi,
-as brdfcl's).  A GGX Cook-Torrance lobe with separable Smith shadowing is ``roughconductor``
-(``distribution="ggx"``, the same alpha; Mitsuba's D, G1 and F are the formulas brdfcl's terms
-are, rho as ``specular_reflectance``), exactly, with its Fresnel as:
+max rho_d) where the two add up to at most 1, else 1 - max rho_d.  Mitsuba refuses an ``rgb``
+reflectance above 1 (a fit's rho_s may be, where its Fresnel reflects less than the
+material); such a reflectance is written as a 1 x 1 EXR (``NAME-reflectance.exr``,
+``NAME-specular_reflectance.exr``) read by a ``bitmap`` texture, which Mitsuba takes with a
+warning.  The diffuse lobe is ``diffuse`` (rho / pi, as brdfcl's).  A GGX Cook-Torrance lobe
+with separable Smith shadowing is ``roughconductor`` (``distribution="ggx"``, the same alpha;
+Mitsuba's D, G1 and F are the formulas brdfcl's terms are, rho as ``specular_reflectance``),
+exactly, with its Fresnel as:
 
 * ``conductor``: ``eta``, ``k`` per channel;
 * ``dielectric``: ``eta`` with ``k = 0`` (the conductor formula with k = 0 is the dielectric one);
@@ -41,14 +44,15 @@ is not written and the note says why.
 from __future__ import annotations
 
 import json
-import os
 import pprint
+import re
 from pathlib import Path
 from typing import Any
 from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
+from brdfcl._words import count
 from brdfcl.model.compose import Model
 from brdfcl.model.lobes.cells import Cells
 from brdfcl.report.export.fitfile import load_fit
@@ -78,6 +82,9 @@ def builtin_mapping(model: Model, values) -> Mapping:
     v = model.as_dict(values)
     lobes: dict[str, list[Any]] = {lb.role: [x for x in model.lobes if x.role == lb.role] for lb in model.lobes}
     why = []
+    if model.n_channels != 3:
+        return Mapping(None, False, f"no Mitsuba built-in BSDF for a fit of {count(model.n_channels, 'channel')} "
+                                    f"(Mitsuba's RGB BSDFs need 3)")
     if lobes.get("diffraction"):
         why.append("a diffraction lobe")
     if len(lobes.get("diffuse", [])) > 1 or len(lobes.get("reflection", [])) > 1:
@@ -121,10 +128,14 @@ def builtin_mapping(model: Model, values) -> Mapping:
             approx.append("Beckmann's Smith G1 as Walter's rational approximation")
         parts.append(spec)
     if len(parts) == 2:
-        # f_d + f_s as (1 - w) (f_d / (1 - w)) + w (f_s / w), w splitting the largest amplitudes
         md = max(parts[0]["reflectance"]["value"])
         ms = max(parts[1]["specular_reflectance"]["value"])
-        w = ms / (ms + md) if ms + md > 0 else 0.5
+        if md <= 0 or ms <= 0:                   # a part that reflects nothing is left out
+            parts = [parts[1] if md <= 0 else parts[0]]
+    if len(parts) == 2:
+        # f_d + f_s as (1 - w) (f_d / (1 - w)) + w (f_s / w): w splits the amplitudes so that both
+        # stay at most 1 where they can, else keeps the diffuse part at most 1
+        w = ms / (ms + md) if ms + md <= 1 or md >= 1 else 1 - md
         parts[0]["reflectance"] = _rgb([x / (1 - w) for x in parts[0]["reflectance"]["value"]])
         parts[1]["specular_reflectance"] = _rgb([x / w for x in parts[1]["specular_reflectance"]["value"]])
         bsdf = {"type": "blendbsdf", "weight": w, "bsdf_0": parts[0], "bsdf_1": parts[1]}
@@ -306,15 +317,27 @@ def _python(name: str, fit_file: str, builtin: dict | None, note: str) -> str:
             f"BUILTIN_NOTE = {note!r}\n")
 
 
-def write_mitsuba(out_dir, src) -> list[Path]:
+def write_mitsuba(out_dir, src) -> tuple[list[Path], Mapping]:
     """Write the Mitsuba files of one fit (a ``NAME.json`` path or its document) into ``out_dir``;
-    the files written, in order."""
+    the files written, in order, and the built-in mapping.  ValueError (one line) for a fit the
+    BSDF cannot render or a folder holding another fit of the same name."""
     from brdfcl.report.files import write_exr
     fit = load_fit(src)
-    doc = fit.doc if isinstance(src, dict) else json.loads(Path(os.fspath(src)).read_text(encoding="utf-8"))
+    if fit.model.n_channels != 3:
+        raise ValueError(f"{fit.name}: a fit of {count(fit.model.n_channels, 'channel')}; Mitsuba's RGB variants "
+                         f"render fits of 3 (R, G, B): fit with --rgb")
     out = Path(out_dir)
+    name = re.sub(r"[^A-Za-z0-9._+-]", "_", fit.name)
+    fit_file = f"{name}.json"
+    target = out / fit_file
+    if target.exists():
+        try:
+            same = json.loads(target.read_text(encoding="utf-8")) == fit.doc
+        except (OSError, ValueError):
+            same = False
+        if not same:
+            raise ValueError(f"{target}: holds another fit; write the Mitsuba files into another folder")
     out.mkdir(parents=True, exist_ok=True)
-    name = fit.name
     mapping = builtin_mapping(fit.model, fit.values)
     written = []
 
@@ -322,12 +345,10 @@ def write_mitsuba(out_dir, src) -> list[Path]:
         p = out / fname
         atomic_write_text(p, text)
         written.append(p)
-    fit_file = f"{name}.json"
-    target = out / fit_file
-    if not (isinstance(src, (str, os.PathLike)) and target.exists() and os.path.samefile(target, src)):
-        put(fit_file, json.dumps(doc, indent=1) + "\n")
+    if not target.exists():
+        put(fit_file, json.dumps(fit.doc, indent=1) + "\n")
     put(f"{name}.xml", _fragment({"type": "brdfcl", "fit": fit_file}, name,
-                                 f"brdfcl fit {name} ({fit.model.spec}); "
+                                 f"brdfcl fit {fit.name} ({fit.model.spec}); "
                                  f"the plugin: import brdfcl.report.export.mitsuba"))
     put(f"{name}-scene.xml", _scene_xml(f"{name}.xml", name, True))
     builtin = None
@@ -336,8 +357,8 @@ def write_mitsuba(out_dir, src) -> list[Path]:
         for fname, rgb in textures.items():
             write_exr(out / fname, {c: np.full((1, 1), v, dtype=np.float32) for c, v in zip("RGB", rgb)})
             written.append(out / fname)
-        put(f"{name}-builtin.xml", _fragment(builtin, f"{name}-builtin", f"{name} with Mitsuba's own BSDFs: "
+        put(f"{name}-builtin.xml", _fragment(builtin, f"{name}-builtin", f"{fit.name} with Mitsuba's own BSDFs: "
                                              + mapping.note.replace("--", "-")))
         put(f"{name}-builtin-scene.xml", _scene_xml(f"{name}-builtin.xml", f"{name}-builtin", False))
     put(f"{name}.py", _python(name, fit_file, builtin, mapping.note))
-    return written
+    return written, mapping

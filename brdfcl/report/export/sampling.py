@@ -27,9 +27,11 @@ Everything is vectorised over directions: ``wi`` and ``wo`` are (n, 3) arrays, u
 local frame; ``wi`` is the direction towards the viewer (Mitsuba's ``si.wi``), ``wo`` towards the
 light.  The BRDF is reciprocal, so the roles may be swapped.
 
-About 280 lines, one module: the components' draws, their densities and the mixture weights
-estimated from those draws are one sampler, checked together (tests/test_export_sampling.py),
-and none is used apart.
+About 300 lines, one module: the components' draws, their densities and the mixture weights
+estimated from those draws are one sampler, checked together (tests/test_export_sampling.py).
+The Mitsuba 3 BSDF (brdfcl.report.export.mitsuba) takes its components and weights from here and
+draws with the same rules (`half_vector`, `half_vector_density`, `cosine_density`) in Dr.Jit;
+this numpy sampler is their float64 reference.
 """
 from __future__ import annotations
 
@@ -66,19 +68,37 @@ def _hv(h):
     return SimpleNamespace(ch=ch, t2=t2)
 
 
-def _sample_h(kind, alpha, u, v):
-    """Half-vectors (n, 3) distributed as D(h) cos(theta_h)."""
-    u = np.clip(u, 0.0, 1.0 - 1e-12)
+def half_vector(kind, alpha, u, v, xp=np):
+    """The half-vector (x, y, z) distributed as D(h) cos(theta_h) for ``kind`` ggx or beckmann, from
+    two uniform numbers in [0, 1), u < 1.  ``xp`` gives ``sqrt``, ``log1p``, ``cos`` and ``sin``:
+    numpy here, Dr.Jit's in the Mitsuba BSDF, so that both draw by this one rule."""
+    a2 = alpha * alpha
     if kind == "ggx":
-        t2 = alpha * alpha * u / (1.0 - u)
+        t2 = a2 * u / (1.0 - u)
     elif kind == "beckmann":
-        t2 = -alpha * alpha * np.log1p(-u)
+        t2 = -a2 * xp.log1p(-u)
     else:
         raise ValueError(kind)
-    ch = 1.0 / np.sqrt(1.0 + t2)
-    sh = np.sqrt(t2) * ch
+    ch = 1.0 / xp.sqrt(1.0 + t2)
+    sh = xp.sqrt(t2) * ch
     phi = 2.0 * np.pi * v
-    return np.stack([sh * np.cos(phi), sh * np.sin(phi), ch], axis=-1)
+    return sh * xp.cos(phi), sh * xp.sin(phi), ch
+
+
+def half_vector_density(D, ch, wo_dot_h):
+    """The density per solid angle of wo when the half-vector is drawn as D(h) cos(theta_h) and wi
+    reflected about it: D cos(theta_h) / (4 wo.h)."""
+    return D * ch / (4.0 * wo_dot_h)
+
+
+def cosine_density(co):
+    """The density per solid angle of cosine-weighted hemisphere sampling: cos(theta_o) / pi."""
+    return co * (1.0 / np.pi)
+
+
+def _sample_h(kind, alpha, u, v):
+    """Half-vectors (n, 3) distributed as D(h) cos(theta_h)."""
+    return np.stack(half_vector(kind, alpha, np.clip(u, 0.0, 1.0 - 1e-12), v), axis=-1)
 
 
 def _sample_cosine(u, v):
@@ -220,9 +240,9 @@ class Sampler:
     def _pdf_from(c, geo, wo):
         up, ok, hv, d = geo
         if c.kind == "cosine":
-            return np.where(up, wo[:, 2], 0.0) / np.pi
+            return cosine_density(np.where(up, wo[:, 2], 0.0))
         D, _ = REGISTRY["ndf"][c.kind].reference(hv, alpha=c.alpha)
-        return np.where(ok, D * hv.ch / (4.0 * np.where(ok, d, 1.0)), 0.0)
+        return np.where(ok, half_vector_density(D, hv.ch, np.where(ok, d, 1.0)), 0.0)
 
     def _pdf_component(self, c, wi, wo):
         return self._pdf_from(c, self._geometry(wi, wo), wo)

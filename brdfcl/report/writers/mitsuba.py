@@ -15,5 +15,6 @@ class MitsubaExport(ExportWriter):
     suffix = "-mitsuba"
 
     def export(self, path: Path, doc: dict, job: Job) -> Path:
-        write_mitsuba(path, doc)
+        _, mapping = write_mitsuba(path, doc)
+        job.log(f"Mitsuba's own BSDFs: {mapping.note}")
         return path
