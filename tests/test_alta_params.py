@@ -141,3 +141,11 @@ def test_a_malformed_alta_file_is_one_line(tmp_path, name, text, problem):
     with pytest.raises(DataError) as e:
         read_measurement(p)
     assert problem in str(e.value) and str(p) in str(e.value) and "\n" not in str(e.value)
+
+
+def test_a_folder_lists_only_the_dat_files_that_are_altas(tmp_path):
+    from brdfcl.data.readers import find_measurements
+    (tmp_path / "notes.dat").write_text("temperature log\n20.5 21.0\n")
+    (tmp_path / "tape.dat").write_text(RETRO + ROW)
+    (tmp_path / "empty.dat").write_bytes(b"")
+    assert [p.name for p in find_measurements(tmp_path)] == ["tape.dat"]

@@ -203,6 +203,17 @@ def read_alta(path: str | os.PathLike[str]) -> Measurement:
                         values, channels, lines=lines)
 
 
+def is_alta_text(path: str | os.PathLike[str]) -> bool:
+    """Whether a file's header (its first 64 KiB) has ALTA's ``#DIM`` line: a folder's ``.dat``
+    files of other kinds are not measurements."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(65536)
+    except OSError:
+        return True                              # listed, so that reading it says why it cannot be
+    return any(line.startswith(b"#DIM") for line in head.splitlines())
+
+
 def read_alta_dat(path: str | os.PathLike[str]) -> Measurement:
     """A ``.dat`` file read as ALTA's (ALTA's retro-reflection data are ``.dat``), once its header
     shows it is one: a ``.dat`` of any other kind is a DataError saying so, not a misreading."""
@@ -304,4 +315,5 @@ def _as_table(path: str, x: np.ndarray, values: np.ndarray, channels) -> AltaTab
 
 
 read_alta.format_name = "ALTA {} files"  # type: ignore[attr-defined]
+read_alta_dat.claims = is_alta_text  # type: ignore[attr-defined]
 read_alta_dat.format_name = "ALTA {} files"  # type: ignore[attr-defined]

@@ -32,7 +32,8 @@ READERS: dict[str, Reader] = {
     ".csv": read_csv,
     ".dat": read_alta_dat,          # refuses a .dat that is not ALTA's, in one line
 }
-"""Suffix -> reader.  The hook for more formats: add an entry."""
+"""Suffix -> reader.  The hook for more formats: add an entry.  A reader of a suffix other formats
+share (``.dat``) has ``claims(path)``: a folder's files it does not claim are not listed."""
 
 
 def formats_text(last: str = "and") -> str:
@@ -61,8 +62,9 @@ def read_measurement(path: str | os.PathLike[str]) -> Measurement:
 
 def find_measurements(folder: str | os.PathLike[str]) -> list[Path]:
     """The entries of a folder (not inside its subfolders) whose names a registered reader
-    reads, sorted by name; hidden ones are skipped.  A subfolder with such a name is listed, so
-    that its reader says in one line why it cannot be read.  DataError if the folder cannot be
+    reads, sorted by name; hidden ones, and files of a shared suffix their reader does not claim
+    (a ``.dat`` that is not ALTA's), are skipped.  A subfolder with such a name is listed, so that
+    its reader says in one line why it cannot be read.  DataError if the folder cannot be
     listed."""
     root = Path(folder)
     if not root.is_dir():
@@ -71,7 +73,12 @@ def find_measurements(folder: str | os.PathLike[str]) -> list[Path]:
         entries = sorted(root.iterdir(), key=lambda p: p.name)
     except OSError as e:
         raise DataError(folder, f"cannot list: {e.strerror or e}") from None
-    return [p for p in entries if not p.name.startswith(".") and reader_for(p) is not None]
+    found = []
+    for p in entries:
+        reader = None if p.name.startswith(".") else reader_for(p)
+        if reader is not None and (p.is_dir() or getattr(reader, "claims", lambda _: True)(p)):
+            found.append(p)
+    return found
 
 
 read_samples = read_measurement
