@@ -186,11 +186,17 @@ def exposure(img):
     return 1.0 / np.percentile(lit, 99) if lit.size else 1.0
 
 
+SRGB = (0.0031308, 12.92, 1.055, 2.4, 0.055)
+"""The sRGB transfer function (IEC 61966-2-1): slope x below the knee, scale x^(1/gamma) - offset
+above; the report's images and its live view (webgl_view.glsl) encode with it."""
+
+
 def to_srgb(img, scale, background=0.18):
     """Display image: ``img * scale`` clipped to [0, 1], sRGB transfer function; outside the
     sphere (NaN in every channel) grey, missing measurements magenta."""
     x = np.clip(np.nan_to_num(img * scale, nan=0.0), 0.0, 1.0).astype(np.float32)
-    out = np.where(x <= 0.0031308, 12.92 * x, 1.055 * x ** (1 / 2.4) - 0.055)
+    knee, slope, scale, gamma, offset = SRGB
+    out = np.where(x <= knee, slope * x, scale * x ** (1 / gamma) - offset)
     out[np.isnan(img).any(-1)] = (1.0, 0.0, 1.0)
     out[np.isnan(img).all(-1)] = background
     return out

@@ -24,6 +24,7 @@ from pathlib import Path
 
 from brdfcl._words import count
 from brdfcl.report.export.glsl_es import ES_HEADER, es_brdf_source, uniforms
+from brdfcl.report.view.sphere import SRGB
 
 FIRST_LIGHT = (45.0, 135.0)       # deg from the view, azimuth: the static key light (-0.5, 0.5, 0.71)
 THETA_I = 30.0                    # the slice's incidence angle at first (deg)
@@ -46,7 +47,9 @@ def _asset(name: str) -> str:
 def fragment_shader(model, values) -> str:
     """The live view's fragment shader: GLSL ES 3.00 of the model (uniforms named as the
     parameters, `brdfcl.report.export.glsl_es`) and the view's main (``webgl_view.glsl``)."""
-    return ES_HEADER + es_brdf_source(model, values) + "\n" + _asset("webgl_view.glsl")
+    srgb = "".join(f"const float SRGB_{n} = {v!r};\n" for n, v in zip(("KNEE", "SLOPE", "SCALE", "GAMMA", "OFFSET"),
+                                                                      SRGB))
+    return ES_HEADER + es_brdf_source(model, values) + "\n" + srgb + _asset("webgl_view.glsl")
 
 
 def turntable_info(path: Path) -> dict | None:

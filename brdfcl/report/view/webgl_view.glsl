@@ -46,7 +46,7 @@ out vec4 fragColor;
 vec3 srgb(vec3 x)
 {
     x = clamp(x, 0.0, 1.0);
-    return mix(12.92 * x, 1.055 * pow(x, vec3(1.0 / 2.4)) - 0.055, step(0.0031308, x));
+    return mix(SRGB_SLOPE * x, SRGB_SCALE * pow(x, vec3(1.0 / SRGB_GAMMA)) - SRGB_OFFSET, step(SRGB_KNEE, x));
 }
 void main(void)
 {
