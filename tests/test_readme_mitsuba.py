@@ -12,6 +12,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 BLOCK = re.compile(r"<!-- mitsuba example[^>]*-->\n```python\n(.*?)```\n<!-- end of mitsuba example -->", re.S)
+GRADIENT = re.compile(r"<!-- mitsuba gradient[^>]*-->\n```python\n(.*?)```\n<!-- end of mitsuba gradient -->", re.S)
 
 
 def _example(path):
@@ -50,6 +51,15 @@ def test_readme_mitsuba_example_runs_as_is(tmp_path):
     assert run.returncode == 0, run.stderr[-2000:]
     for png in ("synth-smooth-metal.png", "synth-smooth-metal-builtin.png"):
         assert (tmp_path / "out" / png).stat().st_size > 1000
+
+    # docs/mitsuba.md's gradient, after the example, as it is
+    gradient = GRADIENT.search((ROOT / "docs" / "mitsuba.md").read_text())
+    assert gradient, "docs/mitsuba.md: the gradient block is missing"
+    run = subprocess.run([sys.executable, "-c", gradient.group(1)], cwd=tmp_path, capture_output=True, text=True,
+                         timeout=900)
+    assert run.returncode == 0, run.stderr[-2000:]
+    value = float(run.stdout.strip().splitlines()[-1].strip("[]"))
+    assert np.isfinite(value) and value != 0
 
     # the demo's GGX metal: Mitsuba's own BSDFs against the brdfcl BSDF, same sample positions
     d = runpy.run_path(str(tmp_path / "out" / "mitsuba" / "synth-smooth-metal.py"))

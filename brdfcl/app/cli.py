@@ -498,11 +498,11 @@ def build_parser():
                                    "format), tabulated as a MERL .binary table, as Mitsuba 3 scene files (the "
                                    "brdfcl BSDF, and Mitsuba's own BSDFs where the fit maps onto them) and/or as "
                                    "an ALTA data file.",
-                       epilog="examples:\n  brdfcl export out/merl/synth-fabric.json --brdf-explorer fabric.brdf\n"
-                              "  brdfcl export out/merl/synth-fabric.json --merl fabric-fit.binary\n"
-                              "  brdfcl export out/merl/synth-fabric.json --mitsuba mitsuba/\n"
-                              "  brdfcl export out/alta/retro-gray-tape.json --alta retro-fit.alta\n"
-                              "  brdfcl export out/merl/synth-fabric.json --alta fabric.alta --at points.alta")
+                       epilog="examples (after brdfcl fit-all --demo --out out/demo):\n"
+                              "  brdfcl export out/demo/synth-fabric.json --brdf-explorer fabric.brdf\n"
+                              "  brdfcl export out/demo/synth-fabric.json --merl fabric-fit.binary\n"
+                              "  brdfcl export out/demo/synth-fabric.json --mitsuba out/mitsuba\n"
+                              "  brdfcl export out/demo/synth-fabric.json --alta fabric.alta --at points.alta")
     p.add_argument("fit", help="a NAME.json written by fit-all")
     p.add_argument("--brdf-explorer", metavar="PATH", help="write a BRDF Explorer .brdf file (analytic GLSL)")
     p.add_argument("--merl", metavar="PATH", help="write the fitted model tabulated as a MERL .binary")

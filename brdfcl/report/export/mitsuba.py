@@ -18,7 +18,7 @@ parameters are scene parameters, named as in NAME.json with ``.`` written ``_`` 
 ``ct_alpha``)::
 
     params = mi.traverse(scene)
-    key = "sphere.bsdf.ct_alpha"
+    key = "sphere.bsdf.ct_alpha"                   # SHAPE.bsdf.NAME, or BSDF_ID.NAME for a BSDF by id
     dr.enable_grad(params[key]); params.update()
     image = mi.render(scene, params)               # then dr.forward(params[key]), dr.grad(image)
 
@@ -39,6 +39,7 @@ except ImportError as _e:  # pragma: no cover - depends on the environment
         "brdfcl.report.export.mitsuba needs Mitsuba 3, which is not installed: "
         'pip install "brdfcl[mitsuba]"  (the mitsuba package from PyPI)') from _e
 
+import warnings
 from types import SimpleNamespace
 from typing import Any
 
@@ -52,7 +53,7 @@ from brdfcl.report.export.sampling import Sampler, cosine_density, half_vector, 
 PLUGIN_NAME = "brdfcl"
 LLVM_MIN = (17,)
 """Dr.Jit 1.5's LLVM kernels use llvm.minimum / llvm.maximum, which LLVM 16 and older cannot
-compile for x86 ("Cannot select: fmaximum", a crash of the whole process)."""
+compile for x86 ("Cannot select: fminimum", a crash of the whole process)."""
 _U_MAX = 1.0 - 2.0 ** -24
 """The largest sample value used (1 - u stays positive in float32)."""
 _registered: set = set()
@@ -66,14 +67,19 @@ def _check_variant():
     if not v.endswith("_rgb"):
         raise RuntimeError(f"the brdfcl BSDF renders a fit's R, G, B channels: it needs an RGB variant "
                            f"(llvm_ad_rgb, cuda_ad_rgb, scalar_rgb), not '{v}'")
-    if v.startswith("llvm_"):
-        have = tuple(dr.detail.llvm_version())
-        if have < LLVM_MIN:
-            raise RuntimeError(
-                f"Dr.Jit loaded libLLVM {'.'.join(map(str, have))}, which cannot compile its kernels (it needs "
-                f"{LLVM_MIN[0]} or newer; 19 is tested): install a newer one (Debian 12: apt install libllvm19) "
-                f"or point DRJIT_LIBLLVM_PATH at it, or use scalar_rgb")
+    if v.startswith("llvm_") and _llvm_too_old():
+        raise RuntimeError(_llvm_message())
     return v
+
+
+def _llvm_too_old() -> bool:
+    return tuple(dr.detail.llvm_version()) < LLVM_MIN
+
+
+def _llvm_message() -> str:
+    have = ".".join(map(str, dr.detail.llvm_version()))
+    return (f"Dr.Jit's libLLVM {have} is too old for its kernels (needs {LLVM_MIN[0]}+): "
+            f"apt install libllvm19, set DRJIT_LIBLLVM_PATH, or use scalar_rgb")
 
 
 def _resolve(path: str) -> str:
@@ -217,10 +223,15 @@ def register():
 
 def _on_variant_change(old=None, new=None):
     # Registered in any variant: making the BSDF in one it does not support says why.  A failure
-    # here must not break mi.set_variant; register() called directly shows it.
+    # here must not break mi.set_variant; register() called directly shows it.  An LLVM that
+    # cannot compile Dr.Jit's kernels aborts the process at the first render, of any scene: say so
+    # now, in one line.
     try:
-        if mi.variant() is not None:
+        v = mi.variant()
+        if v is not None:
             register()
+            if v.startswith("llvm_") and _llvm_too_old():
+                warnings.warn(_llvm_message(), RuntimeWarning, stacklevel=2)
     except Exception:  # pragma: no cover
         pass
 

@@ -15,6 +15,7 @@ class MitsubaExport(ExportWriter):
     suffix = "-mitsuba"
 
     def export(self, path: Path, doc: dict, job: Job) -> Path:
-        _, mapping = write_mitsuba(path, doc)
+        written, mapping = write_mitsuba(path, doc)
+        job.log(f"Mitsuba files in {path}: {', '.join(p.name for p in written)}")
         job.log(f"Mitsuba's own BSDFs: {mapping.note}")
         return path
