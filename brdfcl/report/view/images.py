@@ -27,7 +27,7 @@ _log = logging.getLogger("brdfcl")
 REPORT_LIGHTS = tuple(light for light in DEFAULT_LIGHTS if light[0] in ("key", "grazing", "env"))
 TURNTABLE_DEG = tuple(range(0, 180, 15))    # the live view's measured spheres: light angles from the view
 # brdfcl.report.view.views.plan: lights, sphere size, environment size, turntable angles and size
-PLAN = (REPORT_LIGHTS, 128, 64, TURNTABLE_DEG, 96)
+PLAN = (REPORT_LIGHTS, 128, 64, TURNTABLE_DEG, 64)
 PER_WORKER = 12                   # materials a worker process must have to be worth starting
 DRAW_PROCESSES = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
 

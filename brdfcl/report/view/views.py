@@ -122,7 +122,7 @@ class Plan:
     view, at azimuth 0 (the page's live view turns them to its light's azimuth), each computed on
     its upper half and mirrored."""
 
-    def __init__(self, lights, size, env_size, turntable_deg=(), turntable_size=96):
+    def __init__(self, lights, size, env_size, turntable_deg=(), turntable_size=64):
         wi_all, wo_all, spheres, n = [], [], [], 0
         views = [(label, kind, d, min(size, env_size) if kind == "env" else size) for label, kind, d in lights]
         for label, kind, d, s in views:
@@ -191,7 +191,7 @@ class Plan:
         return {v.label: v.image(at_env if v.kind == "env" else at_points) for v in self.spheres}
 
 
-def plan(lights=None, size=128, env_size=64, turntable_deg=(), turntable_size=96) -> Plan:
+def plan(lights=None, size=128, env_size=64, turntable_deg=(), turntable_size=64) -> Plan:
     """The Plan of these views (sphere.DEFAULT_LIGHTS' form), made once per process."""
     key = tuple((label, kind, tuple(float(x) for x in d)) for label, kind, d in lights or sphere.DEFAULT_LIGHTS)
     return _plan(key, size, env_size, tuple(float(a) for a in turntable_deg), turntable_size)
