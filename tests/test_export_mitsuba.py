@@ -17,36 +17,20 @@ from brdfcl.model.lobes.cells import Cells
 from brdfcl.model.synth import DEMO, demo_values
 from brdfcl.report.export.fitfile import fit_document
 from brdfcl.report.export.sampling import Sampler
+from tests.mitsuba_scenes import LIGHT, disc, sphere_scene, use_variant
 
 NAME = "synth-smooth-metal"
-LIGHT = np.array([-0.5, 0.6, 0.62]) / np.linalg.norm([-0.5, 0.6, 0.62])
 VARIANTS = ["scalar_rgb", "llvm_ad_rgb"]
-
-
-def _use(variant):
-    """Mitsuba in ``variant`` with the plugin registered, or a skip saying why not."""
-    mi = pytest.importorskip("mitsuba", reason='Mitsuba 3 not installed: pip install "brdfcl[mitsuba]"')
-    try:
-        mi.set_variant(variant)
-    except Exception as e:                       # llvm_*: no libLLVM found
-        pytest.skip(f"Mitsuba variant {variant} unavailable here: {str(e).splitlines()[0]}")
-    import brdfcl.report.export.mitsuba as plugin
-    if variant.startswith("llvm_"):
-        import drjit as dr
-        have = tuple(dr.detail.llvm_version())
-        if have < plugin.LLVM_MIN:
-            pytest.skip(f"Dr.Jit loaded libLLVM {have}, too old for its kernels (Debian 12: apt install libllvm19)")
-    return mi
 
 
 @pytest.fixture(params=VARIANTS)
 def mi(request):
-    return _use(request.param)
+    return use_variant(request.param)
 
 
 @pytest.fixture
 def mi_llvm():
-    return _use("llvm_ad_rgb")
+    return use_variant("llvm_ad_rgb")
 
 
 def _write_fit(path, spec, values, name="x"):
@@ -60,31 +44,6 @@ def fit(tmp_path_factory):
     spec, params = DEMO[NAME]
     model = Model(spec)
     return _write_fit(tmp_path_factory.mktemp("fit") / f"{NAME}.json", spec, demo_values(model, params), NAME)
-
-
-def _scene(mi, bsdf, size, spp, emitter, integrator, sampler="stratified"):
-    return mi.load_dict({
-        "type": "scene", "integrator": integrator,
-        "sensor": {"type": "orthographic",           # [-1, 1]^2 of the view plane: the unit sphere fills it
-                   "to_world": mi.ScalarTransform4f.look_at(origin=[0, 0, 3], target=[0, 0, 0], up=[0, 1, 0]),
-                   "film": {"type": "hdrfilm", "width": size, "height": size, "rfilter": {"type": "box"},
-                            "pixel_format": "rgb"},
-                   "sampler": {"type": sampler, "sample_count": spp, "seed": 5}},
-        "sphere": {"type": "sphere", "bsdf": bsdf},
-        "light": emitter})
-
-
-def _key_light(mi, size, spp, bsdf, integrator=None):
-    return _scene(mi, bsdf, size, spp,
-                  {"type": "directional", "direction": (-LIGHT).tolist(), "irradiance": {"type": "rgb", "value": 1.0}},
-                  integrator or {"type": "direct", "emitter_samples": 1, "bsdf_samples": 0})
-
-
-def _disc(size):
-    c = (np.arange(size) + 0.5) / size * 2 - 1
-    x, y = np.meshgrid(c, -c)                      # row 0 at the top, y up (as brdfcl.report.view.sphere)
-    r2 = x * x + y * y
-    return np.stack([x, y, np.sqrt(np.clip(1 - r2, 0, 1))], -1), np.sqrt(r2)
 
 
 def _directions(n, seed):
@@ -162,7 +121,7 @@ def _sphere_difference(mi, model, values, img):
     from brdfcl.report.view.sphere import render_model_sphere
     size = img.shape[0]
     ref = render_model_sphere(model, values, LIGHT, size=size)
-    n, r = _disc(size)
+    n, r = disc(size)
     # Mitsuba averages each pixel (box filter), brdfcl takes its centre: leave out the silhouette
     # and the terminator, where the two differ by the pixel's footprint
     mask = (r < 1 - 2.0 / size) & (n @ LIGHT > 0.05) & np.isfinite(ref).all(-1)
@@ -175,7 +134,7 @@ def test_llvm_sphere_matches_brdfcl_rendering(mi_llvm, fit):
     """Directional light of unit irradiance: radiance f(wi, wo) max(0, n.wi) per pixel."""
     mi = mi_llvm
     model, values, path = fit
-    img = np.array(mi.render(_key_light(mi, 64, 16, {"type": "brdfcl", "fit": str(path)})))
+    img = np.array(mi.render(sphere_scene(mi, {"type": "brdfcl", "fit": str(path)}, 64, 16)))
     med, p90 = _sphere_difference(mi, model, values, img)
     print(f"\nllvm_ad_rgb vs brdfcl sphere, 64 x 64, 16 spp: median relative difference {med:.5f}, 90th pct {p90:.4f}")
     assert med < 0.005
@@ -183,9 +142,9 @@ def test_llvm_sphere_matches_brdfcl_rendering(mi_llvm, fit):
 
 @pytest.mark.slow
 def test_scalar_sphere_matches_brdfcl_rendering(fit):
-    mi = _use("scalar_rgb")
+    mi = use_variant("scalar_rgb")
     model, values, path = fit
-    img = np.array(mi.render(_key_light(mi, 48, 16, {"type": "brdfcl", "fit": str(path)})))
+    img = np.array(mi.render(sphere_scene(mi, {"type": "brdfcl", "fit": str(path)}, 48, 16)))
     med, p90 = _sphere_difference(mi, model, values, img)
     print(f"\nscalar_rgb vs brdfcl sphere, 48 x 48, 16 spp: median relative difference {med:.5f}, 90th pct {p90:.4f}")
     assert med < 0.005
@@ -207,7 +166,7 @@ def test_render_gradient_agrees_with_finite_differences(mi_llvm, tmp_path, spec,
     mi = mi_llvm
     model = Model(spec)
     _, _, path = _write_fit(tmp_path / "f.json", spec, model.defaults())
-    scene = _key_light(mi, 48, 4, {"type": "brdfcl", "fit": str(path)}, {"type": "prb", "max_depth": 2})
+    scene = sphere_scene(mi, {"type": "brdfcl", "fit": str(path)}, 48, 4, integrator={"type": "prb", "max_depth": 2})
     params = mi.traverse(scene)
     k = "sphere.bsdf." + param_key(key)
     x0 = float(params[k][0])
@@ -235,10 +194,10 @@ def test_bsdf_sampling_in_mitsuba_gives_the_albedo(mi_llvm, fit):
     mi = mi_llvm
     model, values, path = fit
     size = 32
-    scene = _scene(mi, {"type": "brdfcl", "fit": str(path)}, size, 256,
-                   {"type": "constant", "radiance": {"type": "rgb", "value": 1.0}},
-                   {"type": "direct", "emitter_samples": 0, "bsdf_samples": 1, "hide_emitters": True},
-                   sampler="independent")
+    scene = sphere_scene(mi, {"type": "brdfcl", "fit": str(path)}, size, 256,
+                         {"type": "constant", "radiance": {"type": "rgb", "value": 1.0}},
+                         {"type": "direct", "emitter_samples": 0, "bsdf_samples": 1, "hide_emitters": True},
+                         sampler="independent")
     img = np.array(mi.render(scene))
     sm = Sampler(model, values)
     rng = np.random.default_rng(0)
@@ -249,7 +208,7 @@ def test_bsdf_sampling_in_mitsuba_gives_the_albedo(mi_llvm, fit):
         _, _, w, _ = sm.sample(wi, rng.random(len(wi)), rng.random((len(wi), 2)))
         albedo.append(w.mean(axis=1))
     albedo = np.array(albedo)
-    n, r = _disc(size)
+    n, r = disc(size)
     mask = (r < 1 - 2.0 / size) & (n[..., 2] > cz[0])
     expect = np.stack([np.interp(n[..., 2][mask], cz, albedo[:, k]) for k in range(3)], -1)
     ratio = img[mask].mean(axis=0) / expect.mean(axis=0)
@@ -258,7 +217,7 @@ def test_bsdf_sampling_in_mitsuba_gives_the_albedo(mi_llvm, fit):
 
 
 def test_missing_fit_and_other_variants_are_clear_errors(tmp_path, fit):
-    mi = _use("scalar_rgb")
+    mi = use_variant("scalar_rgb")
     with pytest.raises(Exception, match="fit"):
         mi.load_dict({"type": "brdfcl"})
     with pytest.raises(Exception, match="cannot read fit result"):

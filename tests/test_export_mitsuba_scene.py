@@ -16,6 +16,7 @@ from brdfcl.model.compose import Model
 from brdfcl.model.lobes.cells import Cells
 from brdfcl.report.export.fitfile import fit_document
 from brdfcl.report.export.mitsuba_scene import _builtin_reference, _directions, builtin_mapping, write_mitsuba
+from tests.mitsuba_scenes import LIGHT, disc, relative_difference, render, sphere_scene, use_variant
 
 EXACT = ["diffuse+ggx:smith:conductor", "diffuse+ggx:smith:dielectric", "ggx:smith:none", "ggx:smith:conductor"]
 APPROXIMATE = ["diffuse+beckmann:smith:schlick", "diffuse+ggx:smith-hc:conductor", "diffuse+ggx:smith:schlick"]
@@ -164,17 +165,7 @@ def test_the_formulas_written_as_mitsubas_are_mitsubas():
 
 @pytest.fixture
 def mi():
-    mi = pytest.importorskip("mitsuba", reason='Mitsuba 3 not installed: pip install "brdfcl[mitsuba]"')
-    try:
-        mi.set_variant("llvm_ad_rgb")
-    except Exception as e:
-        pytest.skip(f"llvm_ad_rgb unavailable here: {str(e).splitlines()[0]}")
-    import drjit as dr
-
-    import brdfcl.report.export.mitsuba as plugin
-    if tuple(dr.detail.llvm_version()) < plugin.LLVM_MIN:
-        pytest.skip("Dr.Jit's libLLVM is too old for its kernels (Debian 12: apt install libllvm19)")
-    return mi
+    return use_variant("llvm_ad_rgb")
 
 
 @pytest.mark.parametrize("spec", ["diffuse+ggx:smith:conductor", "diffuse+ggx:smith:dielectric",
@@ -188,20 +179,8 @@ def test_builtin_bsdfs_render_as_the_brdfcl_bsdf(mi, tmp_path, spec):
     fit.write_text(json.dumps(fit_document(m, v, "x")))
     write_mitsuba(tmp_path / "m", fit)
     d = runpy.run_path(str(tmp_path / "m" / "x.py"))
-    light = np.array([-0.5, 0.6, 0.62]) / np.linalg.norm([-0.5, 0.6, 0.62])
-
-    def render(bsdf):
-        return np.array(mi.render(mi.load_dict({
-            "type": "scene", "integrator": {"type": "direct", "emitter_samples": 1, "bsdf_samples": 0},
-            "sensor": {"type": "orthographic",
-                       "to_world": mi.ScalarTransform4f.look_at(origin=[0, 0, 3], target=[0, 0, 0], up=[0, 1, 0]),
-                       "film": {"type": "hdrfilm", "width": 64, "height": 64, "pixel_format": "rgb"},
-                       "sampler": {"type": "stratified", "sample_count": 4, "seed": 2}},
-            "sphere": {"type": "sphere", "bsdf": bsdf},
-            "light": {"type": "directional", "direction": (-light).tolist()}})), dtype=np.float64)
-    a, b = render(d["BSDF"]), render(d["BUILTIN"])
-    lit = a > 1e-6 * a.max()
-    rel = np.abs(b[lit] - a[lit]) / a[lit]
+    a, b = (render(mi, sphere_scene(mi, d[k], 64, 4)) for k in ("BSDF", "BUILTIN"))
+    rel, lit = relative_difference(a, b)
     print(f"\n{spec}: built-in vs brdfcl BSDF, median relative difference {np.median(rel):.2e}, "
           f"largest {rel.max():.2e} ({d['BUILTIN_NOTE']})")
     if builtin_mapping(m, v).exact:
@@ -209,10 +188,8 @@ def test_builtin_bsdfs_render_as_the_brdfcl_bsdf(mi, tmp_path, spec):
     else:
         # the stated difference holds for directions to 80 deg: the pixels whose normal is within
         # 80 deg of the view and of the light (the stratified positions: a pixel's normals spread)
-        c = (np.arange(64) + 0.5) / 64 * 2 - 1
-        x, y = np.meshgrid(c, -c)
-        n = np.stack([x, y, np.sqrt(np.clip(1 - x * x - y * y, 0, 1))], -1)
-        inside = np.repeat(((n[..., 2] > np.cos(np.radians(78))) & (n @ light > np.cos(np.radians(78))))[..., None],
+        n, _ = disc(64)
+        inside = np.repeat(((n[..., 2] > np.cos(np.radians(78))) & (n @ LIGHT > np.cos(np.radians(78))))[..., None],
                            3, -1)
         stated = float(d["BUILTIN_NOTE"].split("differs by up to ")[1].split("%")[0]) / 100
         rel = np.abs(b[lit & inside] - a[lit & inside]) / a[lit & inside]

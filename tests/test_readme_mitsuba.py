@@ -10,6 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from tests.mitsuba_scenes import relative_difference, render, sphere_scene, use_variant
+
 ROOT = Path(__file__).resolve().parents[1]
 BLOCK = re.compile(r"<!-- mitsuba example[^>]*-->\n```python\n(.*?)```\n<!-- end of mitsuba example -->", re.S)
 GRADIENT = re.compile(r"<!-- mitsuba gradient[^>]*-->\n```python\n(.*?)```\n<!-- end of mitsuba gradient -->", re.S)
@@ -30,15 +32,7 @@ def test_docs_and_readme_give_the_same_example():
 
 @pytest.mark.slow
 def test_readme_mitsuba_example_runs_as_is(tmp_path):
-    mi = pytest.importorskip("mitsuba", reason='Mitsuba 3 not installed: pip install "brdfcl[mitsuba]"')
-    import drjit as dr
-    try:
-        mi.set_variant("llvm_ad_rgb")
-    except Exception as e:
-        pytest.skip(f"llvm_ad_rgb unavailable here: {str(e).splitlines()[0]}")
-    import brdfcl.report.export.mitsuba as plugin
-    if tuple(dr.detail.llvm_version()) < plugin.LLVM_MIN:
-        pytest.skip("Dr.Jit's libLLVM is too old for its kernels (Debian 12: apt install libllvm19)")
+    mi = use_variant("llvm_ad_rgb")
     commands, code = _example(ROOT / "README.md")
     assert len(commands) == 2
     exe = Path(sys.executable).with_name("brdfcl")
@@ -64,20 +58,8 @@ def test_readme_mitsuba_example_runs_as_is(tmp_path):
     # the demo's GGX metal: Mitsuba's own BSDFs against the brdfcl BSDF, same sample positions
     d = runpy.run_path(str(tmp_path / "out" / "mitsuba" / "synth-smooth-metal.py"))
     assert d["BUILTIN_NOTE"].startswith("exact")
-    light = np.array([-0.5, 0.6, 0.62]) / np.linalg.norm([-0.5, 0.6, 0.62])
-
-    def render(bsdf):
-        return np.array(mi.render(mi.load_dict({
-            "type": "scene", "integrator": {"type": "direct", "emitter_samples": 1, "bsdf_samples": 0},
-            "sensor": {"type": "orthographic",
-                       "to_world": mi.ScalarTransform4f.look_at(origin=[0, 0, 3], target=[0, 0, 0], up=[0, 1, 0]),
-                       "film": {"type": "hdrfilm", "width": 256, "height": 256, "pixel_format": "rgb"},
-                       "sampler": {"type": "stratified", "sample_count": 16, "seed": 2}},
-            "sphere": {"type": "sphere", "bsdf": bsdf},
-            "light": {"type": "directional", "direction": (-light).tolist()}})), dtype=np.float64)
-    a, b = render(d["BSDF"]), render(d["BUILTIN"])
-    lit = a > 1e-6 * a.max()
-    rel = np.abs(b[lit] - a[lit]) / a[lit]
+    a, b = (render(mi, sphere_scene(mi, d[k], 256, 16)) for k in ("BSDF", "BUILTIN"))
+    rel, lit = relative_difference(a, b)
     print(f"\ndemo GGX metal, built-in vs brdfcl BSDF, 256 x 256, 16 spp: median relative difference "
           f"{np.median(rel):.2e}, largest {rel.max():.2e}, image sums {b[lit].sum() / a[lit].sum():.6f}")
     assert rel.max() < 0.01
