@@ -10,8 +10,9 @@ series of GTR and ABC) are computed on the host in float64, as for the kernels, 
 expression is built each time a term is evaluated, not when the parameters change: Mitsuba's
 differentiable render is a custom operation that follows only the edges inside it.
 
-Directions are in the local shading frame (n = z); ``wi`` and ``wo`` are Dr.Jit 3-vectors (or
-anything with ``x``, ``y``, ``z``).  The value is 0 where either is below the horizon.
+Directions are in the local shading frame (n = z); ``cells(wi, wo)`` takes Dr.Jit 3-vectors (or
+anything with ``x``, ``y``, ``z``) and says where a pair has a value (both above the horizon);
+``DrjitModel.brdf_cells`` evaluates the model at those cells.
 """
 from __future__ import annotations
 
@@ -140,11 +141,6 @@ class DrjitModel:
                     v = v * done[key]
                 out[ch] = out[ch] + v
         return out
-
-    def brdf(self, wi, wo) -> list:
-        """f(wi, wo) per channel, 1/sr; 0 where either direction is below the horizon."""
-        c, valid = cells(wi, wo)
-        return [dr.select(valid, v, 0.0) for v in self.brdf_cells(c)]
 
 
 def ndf_density(kind: str, alpha: float, ch, t2):

@@ -140,34 +140,34 @@ def bsdf_class():
 
         # Mitsuba's interface: wi = si.wi (towards the viewer), wo towards the light, local frame;
         # eval returns f(wi, wo) cos(theta_o).
-        def _eval(self, wi, wo, active):
-            f = self.model.brdf(wi, wo)
-            return dr.select(active, mi.Color3f(f[0], f[1], f[2]) * dr.maximum(wo.z, 0.0), 0.0)
+        def _eval(self, c, valid, wo, active):
+            f = self.model.brdf_cells(c)
+            f = mi.Color3f(f[0], f[1], f[2]) * wo.z
+            return dr.select(active & valid, f, 0.0)
 
-        def _pdf(self, wi, wo, active):
-            up = active & (wi.z > 0) & (wo.z > 0)
-            c, valid = cells(wi, wo)
-            hx, hy, hz = wi.x + wo.x, wi.y + wo.y, wi.z + wo.z
-            d = (wo.x * hx + wo.y * hy + wo.z * hz) * dr.rsqrt(dr.select(valid, hx * hx + hy * hy + hz * hz, 1.0))
-            ok = valid & (d > 0)
+        def _pdf(self, c, valid, wo, active):
+            # wo.h is cos theta_d, as wi.h is: the cells hold it
             total = 0.0
             for kind, alpha, weight in self._comps:
                 if kind == "cosine":
-                    p = cosine_density(dr.select(up, wo.z, 0.0))
+                    p = cosine_density(wo.z)
                 else:
                     D = ndf_density(kind, alpha, c.ch, c.t2)
-                    p = dr.select(ok, half_vector_density(D, c.ch, dr.select(ok, d, 1.0)), 0.0)
+                    p = dr.select(c.cd > 0, half_vector_density(D, c.ch, dr.select(c.cd > 0, c.cd, 1.0)), 0.0)
                 total = total + weight * p
-            return dr.select(up, total, 0.0)
+            return dr.select(active & valid, total, 0.0)
 
         def eval(self, ctx, si, wo, active=True):
-            return self._eval(si.wi, wo, active)
+            c, valid = cells(si.wi, wo)
+            return self._eval(c, valid, wo, active)
 
         def pdf(self, ctx, si, wo, active=True):
-            return self._pdf(si.wi, wo, active)
+            c, valid = cells(si.wi, wo)
+            return self._pdf(c, valid, wo, active)
 
         def eval_pdf(self, ctx, si, wo, active=True):
-            return self._eval(si.wi, wo, active), self._pdf(si.wi, wo, active)
+            c, valid = cells(si.wi, wo)
+            return self._eval(c, valid, wo, active), self._pdf(c, valid, wo, active)
 
         def sample(self, ctx, si, sample1, sample2, active=True):
             wi = si.wi
