@@ -29,6 +29,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from brdfcl.data.geometry import directions as directions_phi_h0
+
 PARAMS = {"COS_TH": 1, "COS_TH_TD": 2, "RUSIN_TH_TD": 2, "RUSIN_TH_TD_PD": 3, "RUSIN_TH_PH_TD_PD": 4,
           "ISOTROPIC_TV_TL_DPHI": 3, "ISOTROPIC_TL_TV_PROJ_DPHI": 3, "SPHERICAL_TL_PL_TV_PV": 4, "CARTESIAN": 6}
 """The input parametrisations brdfcl reads, with their number of coordinates."""
@@ -42,14 +44,14 @@ def unit(theta: np.ndarray, phi: np.ndarray) -> np.ndarray:
 
 def half_difference(th: np.ndarray, ph: np.ndarray, td: np.ndarray,
                     pd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The direction pair of Rusinkiewicz angles: d = (td, pd) rotated by th about y, then by ph
-    about z; the second direction is its mirror about h = (th, ph)."""
-    d = unit(td, pd)
-    ct, st, cp, sp = np.cos(th), np.sin(th), np.cos(ph), np.sin(ph)
-    a = np.stack([d[:, 0] * ct + d[:, 2] * st, d[:, 1], -d[:, 0] * st + d[:, 2] * ct], axis=1)   # Ry(th) d
-    a = np.stack([a[:, 0] * cp - a[:, 1] * sp, a[:, 0] * sp + a[:, 1] * cp, a[:, 2]], axis=1)      # Rz(ph)
-    h = unit(th, ph)
-    return a, 2 * np.sum(a * h, axis=1, keepdims=True) * h - a
+    """The direction pair of Rusinkiewicz angles: the pair of phi_h = 0
+    (brdfcl.data.geometry.directions), both turned by ph about z."""
+    wi, wo = directions_phi_h0(th, td, pd)
+    c, s = np.cos(ph)[:, None], np.sin(ph)[:, None]
+
+    def turn(v):
+        return np.concatenate([v[:, :1] * c - v[:, 1:2] * s, v[:, :1] * s + v[:, 1:2] * c, v[:, 2:]], axis=1)
+    return turn(wi), turn(wo)
 
 
 def directions(param: str, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
