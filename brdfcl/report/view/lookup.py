@@ -34,25 +34,21 @@ def interpolate(brdf, where, interp="log"):
     if interp not in ("linear", "log"):
         raise ValueError(f"interp '{interp}': nearest, linear or log")
     index, weight = where
-    rows = brdf.T                    # (N_CELLS, 3): one gather per corner, fastest when contiguous
-    n = index.shape[1]
-    acc, acc_log, wsum = (np.zeros((n, 3)) for _ in range(3))
-    positive = np.ones((n, 3), dtype=bool)
-    for corner in range(8):
-        w = weight[corner][:, None]
-        v = rows[index[corner]]
-        ok = np.isfinite(v)
-        acc += np.where(ok, v, 0.0) * w
-        wsum += ok * w
-        if interp == "log":
-            pos = ok & (v > 0)
-            positive &= pos | ~ok | (w == 0)
-            acc_log += np.log(np.where(pos, v, 1.0)) * w * ok
+    brdf = np.asarray(brdf)
+    v = np.take(brdf, index, axis=1)             # (C, 8, n): one gather for every corner
+    ok = np.isfinite(v)
+    w_ok = np.where(ok, weight, 0.0)
+    wsum = w_ok.sum(1)
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-        out = np.where(wsum > 0, acc / wsum, np.nan)
+        out = np.where(wsum > 0, np.einsum("ckn,ckn->cn", np.where(ok, v, 0.0), w_ok) / wsum, np.nan)
         if interp == "log":
-            out = np.where(positive & (wsum > 0), np.exp(acc_log / wsum), out)
-    return out.T
+            positive = ~np.any(ok & (v <= 0) & (weight != 0), axis=1)
+            # the log once per cell where there are fewer cells than corners looked up
+            log_v = np.take(np.log(np.where(brdf > 0, brdf, 1.0)), index, axis=1) if brdf.shape[1] < index.size \
+                else np.log(np.where(v > 0, v, 1.0))
+            mean_log = np.einsum("ckn,ckn->cn", log_v, w_ok) / wsum
+            out = np.where(positive & (wsum > 0), np.exp(mean_log), out)
+    return out
 
 
 def table_lookup(brdf, wi, wo, interp="log"):
