@@ -18,6 +18,7 @@ from its plan (brdfcl.report.view.views) and writes them with ``write_sphere_ima
 from __future__ import annotations
 
 import os
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -181,7 +182,8 @@ def render_table_sphere(table, light_dir, size=128, light="point", interp="log")
 # --- images ------------------------------------------------------------------------------------
 def exposure(img):
     """Scale that maps the 99th percentile of the lit pixels' brightest channel to 1."""
-    m = np.where(np.isfinite(img), img, -np.inf).max(-1)
+    f = np.where(np.isfinite(img), img, -np.inf)
+    m = np.maximum.reduce([f[..., c] for c in range(f.shape[-1])])      # not max(-1): slow over 3 values
     lit = m[m > 0]
     return 1.0 / np.percentile(lit, 99) if lit.size else 1.0
 
@@ -192,25 +194,43 @@ above; the report's images and its live view (webgl_view.glsl) encode with it.""
 
 
 def to_srgb(img, scale, background=0.18):
-    """Display image: ``img * scale`` clipped to [0, 1], sRGB transfer function; outside the
-    sphere (NaN in every channel) grey, missing measurements magenta."""
-    x = np.clip(np.nan_to_num(img * scale, nan=0.0), 0.0, 1.0).astype(np.float32)
-    knee, slope, scale, gamma, offset = SRGB
-    out = np.where(x <= knee, slope * x, scale * x ** (1 / gamma) - offset)
-    out[np.isnan(img).any(-1)] = (1.0, 0.0, 1.0)
-    out[np.isnan(img).all(-1)] = background
+    """Display image (uint8): ``img * scale`` clipped to [0, 1], sRGB transfer function; outside
+    the sphere (NaN in every channel) ``background`` (a display value), missing measurements
+    magenta."""
+    x = np.fmin(np.fmax(img * scale, 0.0), 1.0)           # fmax, fmin: NaN to 0
+    out = np.take(_srgb_codes(), np.rint(x * _LUT_MAX).astype(np.int32))
+    nan = np.isnan(img)
+    channels = [nan[..., c] for c in range(img.shape[-1])]   # not any(-1): slow over 3 values
+    out[np.logical_or.reduce(channels)] = (255, 0, 255)
+    out[np.logical_and.reduce(channels)] = int(background * 255.0 + 0.5)
     return out
+
+
+_LUT_MAX = 65535                  # linear steps of the transfer function's table: far finer than 8-bit codes
+
+
+@lru_cache(maxsize=1)
+def _srgb_codes() -> np.ndarray:
+    """The sRGB transfer function as 8-bit codes at ``_LUT_MAX + 1`` linear steps over [0, 1]."""
+    return _code(np.linspace(0.0, 1.0, _LUT_MAX + 1))
+
+
+def _code(x):
+    """8-bit sRGB codes of linear values in [0, 1] (`SRGB`)."""
+    knee, slope, scale, gamma, offset = SRGB
+    x = np.asarray(x, dtype=np.float64)
+    return (np.where(x <= knee, slope * x, scale * x ** (1 / gamma) - offset) * 255.0 + 0.5).astype(np.uint8)
 
 
 def panels(images, scale, gap=4, background=0.18):
     """sRGB uint8 image of ``images`` (each (n, n, 3), linear) side by side at one exposure."""
     srgb = [to_srgb(img, scale, background) for img in images]
     h = srgb[0].shape[0]
-    strip = np.full((h, gap, 3), 1.0)
+    strip = np.full((h, gap, 3), 255, dtype=np.uint8)
     out = [srgb[0]]
     for img in srgb[1:]:
         out += [strip, img]
-    return (np.concatenate(out, axis=1) * 255.0 + 0.5).astype(np.uint8)
+    return np.concatenate(out, axis=1)
 
 
 def write_png(path, rgb, size=None):
