@@ -16,7 +16,7 @@ from brdfcl.report.view.lookup import rusinkiewicz, table_lookup
 from brdfcl.report.view.material import curves, write_images
 from brdfcl.report.view.slices import slice_curves, slice_directions, slice_values, write_slices
 from brdfcl.report.view.sphere import DEFAULT_LIGHTS, render_model_sphere, render_table_sphere, sphere_normals
-from brdfcl.report.view.svgplot import TOLERANCE_PX, _thin
+from brdfcl.report.view.svgplot import TOLERANCE_PX, _thin, _thin_runs
 from brdfcl.report.view.views import plan
 
 NAME = "synth-smooth-metal"
@@ -187,16 +187,32 @@ def test_engine_values_match_the_reference(metal):
             np.testing.assert_allclose(f.lobes[k], ref.lobes[k], rtol=2e-5, atol=1e-30)
 
 
+def _largest_offset(x, y, keep):
+    """The largest distance of a point of the line (x, y) from the line through its kept points."""
+    seg = np.searchsorted(keep, np.arange(x.size), side="right") - 1       # the kept chord over each point
+    a, b = keep[np.minimum(seg, keep.size - 2)], keep[np.minimum(seg + 1, keep.size - 1)]
+    dx, dy = x[b] - x[a], y[b] - y[a]
+    return (np.abs(dx * (y - y[a]) - dy * (x - x[a])) / np.hypot(dx, dy)).max()
+
+
 def test_thinned_lines_stay_within_the_tolerance():
     x = np.linspace(0, 300, 721)
     y = 100 + 60 * np.sin(x / 17.0) + 40 * np.exp(-((x - 150) / 2.0) ** 2)
     keep = _thin(x, y)
     assert keep[0] == 0 and keep[-1] == x.size - 1 and keep.size < x.size / 2
-    seg = np.searchsorted(keep, np.arange(x.size), side="right") - 1       # the kept chord over each point
-    a, b = keep[np.minimum(seg, keep.size - 2)], keep[np.minimum(seg + 1, keep.size - 1)]
-    dx, dy = x[b] - x[a], y[b] - y[a]
-    dist = np.abs(dx * (y - y[a]) - dy * (x - x[a])) / np.hypot(dx, dy)
-    assert dist.max() < TOLERANCE_PX
+    assert _largest_offset(x, y, keep) < TOLERANCE_PX
+
+
+def test_runs_thinned_together_keep_their_ends_and_the_tolerance():
+    x = np.linspace(0, 300, 721)
+    y = 100 + 60 * np.sin(x / 17.0) + 40 * np.exp(-((x - 150) / 2.0) ** 2)
+    starts, stops = np.array([0, 3, 200, 201, 500]), np.array([2, 150, 201, 480, 721])
+    keep, run_of = _thin_runs(x, y, starts, stops)
+    assert keep.size < x.size / 2 and np.all(np.diff(run_of) >= 0)
+    for i, (a, b) in enumerate(zip(starts, stops)):
+        mine = keep[run_of == i]
+        assert mine[0] == a and mine[-1] == b - 1
+        assert b - a < 3 or _largest_offset(x[a:b], y[a:b], mine - a) < TOLERANCE_PX
 
 
 def test_lobes_add_up(metal):

@@ -148,20 +148,25 @@ def _panel(p, x0, y0, w, h):
         out.append(f"<line x1='{x:.1f}' y1='{y0}' x2='{x:.1f}' y2='{y0 + h}' stroke='#e6e6e6'/>"
                    f"<text x='{x:.1f}' y='{y0 + h + 13}' text-anchor='middle' font-size='10'>{t:g}</text>")
     out.append(f"<g clip-path='url(#{clip})'>")
+    lines = [item for item in p.items if item[0] == "line"]
+    paths = iter(_line_paths([px(it[1]) for it in lines], [py(it[2]) for it in lines],
+                             [np.isfinite(it[2]) & (it[2] > 0) for it in lines]))
     lights = []
     for item in p.items:
         if item[0] == "line":               # in tenths of a pixel: integers are quick to write
             _, x, y, color, width, opacity, dash = item
             extra = (f" stroke-opacity='{opacity}'" if opacity < 1 else "") + \
                 (f" stroke-dasharray='{','.join(str(10 * float(v)) for v in dash.split(','))}'" if dash else "")
-            for d in _paths(px(x), py(y), np.isfinite(y) & (y > 0)):
+            for d in next(paths):
                 out.append(f"<path transform='scale(0.1)' d='{d}' fill='none' stroke='{color}' "
                            f"stroke-width='{10 * width:g}' stroke-linejoin='round'{extra}/>")
         elif item[0] == "markers":
             _, x, y, color, r = item
             ok = np.isfinite(y) & (y > 0)
-            out += [f"<circle cx='{a:.1f}' cy='{b:.1f}' r='{r}' fill='none' stroke='{color}' stroke-width='0.8'/>"
-                    for a, b in zip(px(x[ok]), py(y[ok]))]
+            xy = np.stack([px(x[ok]), py(y[ok])], -1).ravel().tolist()
+            circle = f"<circle cx='%.1f' cy='%.1f' r='{r}' fill='none' stroke='{color}' stroke-width='0.8'/>\n"
+            if xy:
+                out.append((circle * (len(xy) // 2) % tuple(xy)).rstrip("\n"))
         else:
             lights.append(item)
     out.append("</g>")
@@ -175,35 +180,55 @@ def _panel(p, x0, y0, w, h):
     return out
 
 
-def _paths(x, y, ok):
-    """SVG path data of each run of valid points, thinned (see TOLERANCE_PX)."""
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], ok.astype(np.int8), [0]])))
-    out = []
-    for a, b in zip(edges[::2], edges[1::2]):
-        if b - a < 2:
-            continue
-        keep = _thin(x[a:b], y[a:b])
-        xy = np.rint(np.stack([x[a:b][keep], y[a:b][keep]], -1) * 10).astype(np.int64)
-        out.append("M" + " ".join(map(str, xy.ravel().tolist())))     # pairs after M: lines
-    return out
+def _line_paths(xs, ys, oks):
+    """Per line (pixel coordinates ``xs``, ``ys`` and where valid, ``oks``): the SVG path data of
+    each run of two or more valid points, thinned (see TOLERANCE_PX); every line of a panel
+    thinned and written together."""
+    runs, first = [], 0
+    for ok in oks:
+        edges = np.flatnonzero(np.diff(np.concatenate([[0], ok.astype(np.int8), [0]]))) + first
+        runs.append([(a, b) for a, b in zip(edges[::2], edges[1::2]) if b - a >= 2])
+        first += ok.size
+    flat = [r for line in runs for r in line]
+    if not flat:
+        return [[] for _ in oks]
+    x, y = np.concatenate(xs), np.concatenate(ys)
+    starts = np.array([a for a, _ in flat])
+    stops = np.array([b for _, b in flat])
+    keep, run_of = _thin_runs(x, y, starts, stops)
+    xy = np.rint(np.stack([x[keep], y[keep]], -1) * 10).astype(np.int64).ravel().tolist()
+    bounds = np.searchsorted(run_of, np.arange(len(flat) + 1)) * 2
+    text = iter("M" + " ".join(map(str, xy[a:b])) for a, b in zip(bounds[:-1], bounds[1:]))  # pairs after M
+    return [[next(text) for _ in line] for line in runs]
 
 
 def _thin(x, y, passes=4):
-    """Indices of the points kept.  Pass k drops points closer than TOLERANCE_PX / 2^(k+1) to
-    the chord of their neighbours, never two neighbours at once; a dropped point's distance from
-    the final line is at most the sum of those, below TOLERANCE_PX."""
-    keep = np.arange(x.size)
+    """Indices of the points of one line that thinning keeps (`_thin_runs`)."""
+    return _thin_runs(np.asarray(x, float), np.asarray(y, float), np.array([0]), np.array([np.size(x)]), passes)[0]
+
+
+def _thin_runs(x, y, starts, stops, passes=4):
+    """The points kept of the runs ``[starts[i], stops[i])`` of ``x``, ``y``, in order, and the run
+    each belongs to.  Pass k drops points closer than TOLERANCE_PX / 2^(k+1) to the chord of their
+    neighbours, never two neighbours at once and never a run's ends; a dropped point's distance
+    from the final line is at most the sum of those, below TOLERANCE_PX."""
+    lengths = stops - starts
+    run_of = np.repeat(np.arange(starts.size), lengths)
+    keep = np.arange(lengths.sum()) - np.repeat(np.cumsum(lengths) - lengths - starts, lengths)
+    fixed = np.zeros(keep.size, bool)
+    fixed[np.cumsum(lengths) - lengths] = True
+    fixed[np.cumsum(lengths) - 1] = True
     for k in range(passes):
         if keep.size < 3:
             break
         xs, ys = x[keep], y[keep]
         dx, dy = xs[2:] - xs[:-2], ys[2:] - ys[:-2]
         dist = np.abs(dx * (ys[1:-1] - ys[:-2]) - dy * (xs[1:-1] - xs[:-2])) / np.maximum(np.hypot(dx, dy), 1e-9)
-        drop = dist < TOLERANCE_PX / 2 ** (k + 1)
-        drop[1::2] = False                 # never two neighbours in one pass
+        drop = (dist < TOLERANCE_PX / 2 ** (k + 1)) & ~fixed[1:-1]
+        drop[1::2] = False        # never two neighbours in one pass; a run's interior points have its own as neighbours
+        if not drop.any():
+            break
         mask = np.ones(keep.size, bool)
         mask[1:-1] = ~drop
-        if mask.all():
-            break
-        keep = keep[mask]
-    return keep
+        keep, run_of, fixed = keep[mask], run_of[mask], fixed[mask]
+    return keep, run_of
