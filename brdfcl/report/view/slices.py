@@ -95,10 +95,25 @@ def slice_curves(table, model, values):
 def _limits(curves):
     """One value range for a row of panels: from the top of every curve down to where the
     lowest quarter of the weakest curve starts (so that every lobe shows), at most DECADES."""
-    pos = [c[np.isfinite(c) & (c > 0)] for c in (np.ravel(a) for a in curves)]
-    pos = [c for c in pos if c.size]
-    hi = 2 * max(c.max() for c in pos) if pos else 1.0
-    lo = max(min(np.percentile(c, 25) for c in pos) / 3 if pos else 1e-3, hi * 10.0 ** -DECADES)
+    quartiles, tops = [], []
+    by_size: dict[int, list] = {}
+    for c in curves:
+        a = np.ravel(c)
+        by_size.setdefault(a.size, []).append(a)
+    for group in by_size.values():          # curves of one length: one sort
+        a = np.stack(group)
+        valid = np.isfinite(a) & (a > 0)
+        k = valid.sum(1)
+        a = np.sort(np.where(valid, a, np.inf), axis=1)[k > 0]
+        k = k[k > 0]
+        at = (k - 1) * 0.25                 # numpy's default ("linear") percentile
+        lo = np.floor(at).astype(int)
+        rows = np.arange(k.size)
+        hi_i = np.minimum(lo + 1, k - 1)
+        quartiles += list(a[rows, lo] + (at - lo) * (a[rows, hi_i] - a[rows, lo]))
+        tops += list(a[rows, k - 1])
+    hi = 2 * max(tops) if tops else 1.0
+    lo = max(min(quartiles) / 3 if quartiles else 1e-3, hi * 10.0 ** -DECADES)
     return lo, hi
 
 
