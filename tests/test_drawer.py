@@ -34,3 +34,11 @@ def test_leaving_on_an_error_stops_the_workers():
 def test_in_process_runs_at_once():
     with InProcess() as pool:
         assert pool.submit(os.path.join, "a", "b").result() == os.path.join("a", "b")
+
+
+def test_a_call_goes_to_the_worker_named_and_workers_run_at_their_niceness():
+    with Drawers(2, nice=3) as pool:
+        pids = [pool.submit(os.getpid, worker=k).result(timeout=60) for k in (0, 1, 0, 1)]
+        assert pids[0] == pids[2] != pids[1] == pids[3]
+        assert pool.size == 2
+        assert pool.submit(os.nice, 0).result(timeout=60) == os.nice(0) + 3

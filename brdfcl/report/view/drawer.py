@@ -45,20 +45,21 @@ class InProcess:
     def __exit__(self, *exc):
         return False
 
-    def submit(self, fn, *args) -> Future:
+    def submit(self, fn, *args, worker=None) -> Future:
         f: Future = Future()
         f.set_result(fn(*args))
         return f
 
 
 class Drawers:
-    """``n`` worker processes; `submit` sends a call to the one with the fewest pending and
-    returns a Future of its result (the worker's exception re-raised; a worker that died: a
-    RuntimeError of one line)."""
+    """``n`` worker processes; `submit` sends a call to worker ``worker`` or, by default, the one
+    with the fewest pending, and returns a Future of its result (the worker's exception
+    re-raised; a worker that died: a RuntimeError of one line).  ``nice``: the workers' niceness
+    increment (os.nice), for workers that should take only CPU time nothing else wants."""
 
-    def __init__(self, n: int):
+    def __init__(self, n: int, nice: int = 0):
         env = dict(os.environ, PYTHONUNBUFFERED="1")
-        self._procs = [subprocess.Popen([sys.executable, "-m", __name__], stdin=subprocess.PIPE,
+        self._procs = [subprocess.Popen([sys.executable, "-m", __name__, str(int(nice))], stdin=subprocess.PIPE,
                                         stdout=subprocess.PIPE, env=env) for _ in range(n)]
         self._pending: list[queue.Queue] = [queue.Queue() for _ in self._procs]
         self._counts = [0] * n
@@ -82,9 +83,13 @@ class Drawers:
                 self._counts[k] -= 1
             (f.set_result if status == "ok" else f.set_exception)(value)
 
-    def submit(self, fn, *args) -> Future:
+    @property
+    def size(self) -> int:
+        return len(self._procs)
+
+    def submit(self, fn, *args, worker=None) -> Future:
         with self._lock:
-            k = min(range(len(self._procs)), key=self._counts.__getitem__)
+            k = min(range(len(self._procs)), key=self._counts.__getitem__) if worker is None else worker
             self._counts[k] += 1
         f: Future = Future()
         self._pending[k].put(f)
@@ -114,6 +119,8 @@ class Drawers:
 
 def main() -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)     # Ctrl-C is the caller's to handle
+    if len(sys.argv) > 1 and int(sys.argv[1]):
+        os.nice(int(sys.argv[1]))
     stdin, stdout = sys.stdin.buffer, sys.stdout.buffer
     sys.stdout = sys.stderr               # a stray print must not break the answers
     while True:

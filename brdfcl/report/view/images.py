@@ -6,6 +6,11 @@ stamp differs.  Tables: the lit spheres, thumbnail, measured turntable and slice
 the fits of one model evaluated together on the engine and the drawing spread over a process
 per core (brdfcl.report.view.drawer); scattered samples: the in-plane figure
 (brdfcl.report.sample_figures).
+
+A fit job may start those processes when it starts (`Beside`): at a low priority, they read each
+table and draw what needs no fit (its measured spheres and turntable) in the CPU time the fits
+leave, and keep it; each material's fitted side then goes to the process holding its measured
+side.
 """
 from __future__ import annotations
 
@@ -18,7 +23,7 @@ from brdfcl.device.errors import DeviceError, ProgramError
 from brdfcl.model.compose import Model
 from brdfcl.report.view.drawer import Drawers, InProcess
 from brdfcl.report.view.evaluate import CHUNK, Evaluator
-from brdfcl.report.view.material import write_material
+from brdfcl.report.view.material import measure, write_material
 from brdfcl.report.view.sphere import DEFAULT_LIGHTS
 from brdfcl.report.view.views import plan as view_plan
 
@@ -30,17 +35,45 @@ TURNTABLE_DEG = tuple(range(0, 180, 15))    # the live view's measured spheres: 
 PLAN = (REPORT_LIGHTS, 128, 64, TURNTABLE_DEG, 64)
 PER_WORKER = 12                   # materials a worker process must have to be worth starting
 DRAW_PROCESSES = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+BESIDE_NICE = 10                  # the workers beside the fits: their niceness increment
+BESIDE_KEPT = 100                 # measured sides a worker keeps at most (~2 MB each)
+_MEASURED: dict = {}              # in a worker: (table, mtime) -> its measured side, made beside the fits
+
+
+class Beside:
+    """Image workers started with a fit job (``tables``: material name -> measured table file)
+    that draw, beside the fits, the measured side of each table whose images are not up to date
+    (brdfcl.report.view.material.measure), keeping it for `draw_images`; no workers where the
+    job would not start them (`_pool`)."""
+
+    def __init__(self, rep, tables: dict, read_cells):
+        todo = [(n, p) for n, p in tables.items() if os.path.exists(p) and not _measured_current(rep / n, p)]
+        self.pool = Drawers(DRAW_PROCESSES, nice=BESIDE_NICE) \
+            if len(todo) >= PER_WORKER * DRAW_PROCESSES and DRAW_PROCESSES > 1 else None
+        self.worker: dict[str, int] = {}
+        if self.pool is None:
+            return
+        for i, (name, path) in enumerate(todo[:BESIDE_KEPT * self.pool.size]):
+            self.worker[name] = i % self.pool.size
+            self.pool.submit(_measure, rep, name, path, read_cells, worker=i % self.pool.size)
+
+    def close(self) -> None:
+        """End the workers (where `draw_images` did not take them)."""
+        if self.pool is not None:
+            self.pool.__exit__(None, None, None)
+            self.pool = None
 
 
 def _key(e):
     return f"{e.model}|{sorted(e.params.items())}|{os.path.getmtime(e.table)}"
 
 
-def draw_images(rep, entries, read_cells, engine=None) -> dict:
+def draw_images(rep, entries, read_cells, engine=None, beside: Beside | None = None) -> dict:
     """{name: images} of every entry with a measurement: kept in ``rep/NAME/`` when newer than
     its table and fit, else drawn, the fits of one model evaluated together (CHUNK at a time);
     ``read_cells(path, index)``: a table's BRDF (3, len(index)) at the views' cells (the MERL
-    table's, brdfcl.data.geometry.table_values)."""
+    table's, brdfcl.data.geometry.table_values); ``beside``: the job's workers, holding measured
+    sides (they are ended here)."""
     out: dict = {}
     todo: dict[str, list] = {}
     for e in entries:
@@ -53,10 +86,16 @@ def draw_images(rep, entries, read_cells, engine=None) -> dict:
             out[e.name] = _sample_images(rep / e.name, e)
         else:
             todo.setdefault(e.model, []).append(e)
+    pool = beside.pool if beside is not None and beside.pool is not None else None
+    placed = beside.worker if pool is not None and beside is not None else {}
+    if beside is not None:
+        beside.pool = None                            # ended here
     if not todo:
+        if pool is not None:
+            pool.__exit__(None, None, None)
         return out
     plan = view_plan(*PLAN)
-    with _pool(sum(len(g) for g in todo.values())) as pool:
+    with pool or _pool(sum(len(g) for g in todo.values())) as pool:
         drawn = []
         for spec, group in todo.items():
             model = Model(spec)
@@ -64,8 +103,8 @@ def draw_images(rep, entries, read_cells, engine=None) -> dict:
             for first in range(0, len(group), CHUNK):
                 part = group[first:first + CHUNK]
                 fitted = evaluate([[e.params[n] for n in model.names] for e in part])
-                drawn += [pool.submit(_draw, rep, e.name, e.table, _key(e), spec, f, read_cells)
-                          for e, f in zip(part, fitted)]
+                drawn += [pool.submit(_draw, rep, e.name, e.table, _key(e), spec, f, read_cells,
+                                      worker=placed.get(e.name)) for e, f in zip(part, fitted)]
         out.update(f.result() for f in drawn)
     return out
 
@@ -77,10 +116,30 @@ def _pool(n):
     return Drawers(DRAW_PROCESSES) if n >= PER_WORKER * DRAW_PROCESSES and DRAW_PROCESSES > 1 else InProcess()
 
 
+def _measure(rep, name, table, read_cells):
+    """In a worker beside the fits: the measured side of a table's images, kept for `_draw`; a
+    table that cannot be read is left to `_draw`, which says why."""
+    plan = view_plan(*PLAN)
+    try:
+        _MEASURED[table, os.path.getmtime(table)] = measure(rep / name, name, read_cells(table, plan.table_cells), plan)
+    except Exception:
+        pass
+    return name
+
+
+def _measured_current(d, table) -> bool:
+    """Whether the images in ``d`` were drawn from the table as it is now (their stamp's key ends
+    with its modification time, `_key`)."""
+    return _stamp(d).get("key", "").rpartition("|")[2] == str(os.path.getmtime(table))
+
+
 def _draw(rep, name, table, key, spec, fitted, read_cells):
-    """One material's images (brdfcl.report.view.material) and their stamp: (name, images)."""
+    """One material's images (brdfcl.report.view.material) and their stamp: (name, images); the
+    measured side made beside the fits where it was."""
     model, plan = Model(spec), view_plan(*PLAN)
-    paths, captions = write_material(rep / name, name, read_cells(table, plan.table_cells), model, fitted, plan)
+    measured = _MEASURED.pop((table, os.path.getmtime(table)), None)
+    values = None if measured is not None else read_cells(table, plan.table_cells)
+    paths, captions = write_material(rep / name, name, values, model, fitted, plan, measured)
     _write_stamp(rep / name, key, captions)
     return name, _classify(paths, name, captions)
 

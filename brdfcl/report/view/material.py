@@ -6,7 +6,10 @@ every view (brdfcl.report.view.views) and the fits evaluated for many materials 
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass
 from pathlib import Path
+
+import numpy as np
 
 from brdfcl.report.files import atomic_write_text
 from brdfcl.report.view.evaluate import Evaluator, Fitted
@@ -37,17 +40,37 @@ def curves(plan, measured, fitted: Fitted) -> dict:
     return out
 
 
-def write_material(out_dir, name, values, model, fitted: Fitted, plan):
-    """Spheres, thumbnail and slices of one material (``values``: its table at the plan's cells,
-    ``Plan.table_values``) with its ``fitted`` values; returns (paths, {image name: caption})."""
+@dataclass
+class Measured:
+    """A table's side of its images, which needs no fit: its values at the plan's points (3, n),
+    its sphere images ({label: radiance}) and the turntable files written."""
+
+    at_points: np.ndarray
+    images: dict
+    files: list
+
+
+def measure(out_dir, name, values, plan) -> Measured:
+    """The measured side of a material's images from its table at the plan's cells (``values``,
+    ``Plan.table_values``), the turntable written (its exposure the first sphere's, as the page's)."""
     at_points, at_env = plan.measured(values)
-    measured = plan.images(at_points, at_env)
+    images = plan.images(at_points, at_env)
+    files = write_turntable(out_dir, name, plan, values, exposure(images[plan.spheres[0].label])) \
+        if plan.turntable else []
+    return Measured(at_points, images, files)
+
+
+def write_material(out_dir, name, values, model, fitted: Fitted, plan, measured: Measured | None = None):
+    """Spheres, thumbnail and slices of one material (``values``: its table at the plan's cells,
+    ``Plan.table_values``; or its `measure`, ``measured``, made before) with its ``fitted``
+    values; returns (paths, {image name: caption})."""
+    if measured is None:
+        measured = measure(out_dir, name, values, plan)
     fit = plan.images(fitted.points, fitted.env)
     lights = [(v.label, v.kind, v.light) for v in plan.spheres]
-    paths, captions = write_sphere_images(out_dir, name, model.spec, lights, measured, fit)
-    if plan.turntable:
-        paths += write_turntable(out_dir, name, plan, values, exposure(measured[lights[0][0]]))
-    return paths + write_slice_figures(out_dir, name, model, curves(plan, at_points, fitted)), captions
+    paths, captions = write_sphere_images(out_dir, name, model.spec, lights, measured.images, fit)
+    paths += measured.files + write_slice_figures(out_dir, name, model, curves(plan, measured.at_points, fitted))
+    return paths, captions
 
 
 def write_turntable(out_dir, name, plan, values, scale):
@@ -56,6 +79,7 @@ def write_turntable(out_dir, name, plan, values, scale):
     first light's exposure; black off the sphere, as the live view), and what they are in
     ``NAME-turntable.json`` (angles, their step, white in 1/sr): the page's live view shows the
     one nearest its light, turned to its azimuth (brdfcl.report.view.webgl)."""
+    Path(out_dir).mkdir(parents=True, exist_ok=True)
     png = Path(out_dir) / f"{name}-turntable.png"
     write_png(png, panels(plan.turntable_images(values), scale, gap=0, background=0.0))
     angles = [float(v.label) for v in plan.turntable]

@@ -99,15 +99,15 @@ class Entry:
         return Model(self.model) if self.lambdas is None else Model(self.model, lambdas=self.lambdas)
 
 
-def write_report(out, entries, read_cells, title="brdfcl fits", log=None, engine=None) -> Path:
+def write_report(out, entries, read_cells, title="brdfcl fits", log=None, engine=None, beside=None) -> Path:
     """Write ``OUT/report/``: images per material (drawn again only when the fit or the table
     changed), one page per material and the comparison page.  ``read_cells(path, index)`` reads a
     measured table's BRDF (3, len(index)) at some cells; ``engine(spec)``, where given, is a
     compiled Engine of a model spec (else one is made here; without any device, the images use
-    the float64 reference)."""
+    the float64 reference); ``beside``: the job's image workers (brdfcl.report.view.images.Beside)."""
     rep = Path(out) / "report"
     rep.mkdir(parents=True, exist_ok=True)
-    images = draw_images(rep, entries, read_cells, engine)
+    images = draw_images(rep, entries, read_cells, engine, beside)
     for e in entries:
         _write(rep / f"{e.name}.html", material_page(e, images.get(e.name, {}), rep))
         if log:

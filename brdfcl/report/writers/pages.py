@@ -8,6 +8,7 @@ verdict and, where drawn, its analysis figures.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from brdfcl._words import count
 from brdfcl.data.errors import DataError
@@ -18,16 +19,39 @@ from brdfcl.report.output import read_results
 from brdfcl.report.writers.analysis_figures import figure_paths
 from brdfcl.report.writers.base import FIT, Item, Job, Writer
 
+if TYPE_CHECKING:
+    from brdfcl.report.view.images import Beside
+
 
 class ReportPages(Writer):
     """When the job asks for them (``job.pages``); last, as it shows what the others wrote."""
 
     name = "pages"
 
+    def __init__(self):
+        self._beside: dict[Path, Beside] = {}    # a fit job's output folder -> its image workers
+
     def applies_to(self, job: Job) -> bool:
         return job.pages
 
+    def prepare(self, job: Job) -> None:
+        """A fit job: the image workers start now and draw the tables' measured side beside the
+        fits (brdfcl.report.view.images.Beside)."""
+        if job.kind != FIT:
+            return
+        from brdfcl.report.view.images import Beside
+        tables = {n: p for n, p in job.tables.items() if _tabulated(p)}
+        self._beside[job.out] = Beside(job.out / "report", tables, _read_cells)
+
     def finish(self, job: Job, items: list[Item]) -> Path | None:
+        beside = self._beside.pop(job.out, None)
+        try:
+            return self._write(job, items, beside)
+        finally:
+            if beside is not None:
+                beside.close()
+
+    def _write(self, job: Job, items: list[Item], beside: Beside | None) -> Path | None:
         # local: the pages draw with matplotlib, which a run without them never loads
         from brdfcl.report.view.pages import Entry, write_report
         if job.kind == FIT:
@@ -44,7 +68,7 @@ class ReportPages(Writer):
             title = f"brdfcl analysis of {count(len(entries), 'material')}"
         job.log(f"report: the pages of {count(len(entries), 'material')} "
                 f"(images drawn where a fit or table changed)")
-        index = write_report(job.out, entries, _read_cells, title=title, engine=job.engine)
+        index = write_report(job.out, entries, _read_cells, title=title, engine=job.engine, beside=beside)
         job.log(f"report: {index}")
         return index
 
