@@ -57,11 +57,12 @@ def locked(path: Path):
         yield
 
 
-def generated(kind: str, key: str, make) -> str:
+def generated(kind: str, key: str, make, keep: int | None = None) -> str:
     """Text that depends only on the code (a term's generated C or Python), made once per machine:
     read from ``generated/KIND/KEY.json`` in brdfcl's cache when it is there and whole, else
     ``make()`` and written atomically.  ``key`` must change whenever what ``make`` reads does (a
-    hash of those sources); an unwritable cache makes the text in every process."""
+    hash of those sources); an unwritable cache makes the text in every process.  ``keep``: writing
+    one removes all but the ``keep`` newest of its kind (for kinds with a file per configuration)."""
     path = cache_dir() / "generated" / kind / f"{key}.json"
     try:
         doc = json.loads(path.read_text())
@@ -73,9 +74,18 @@ def generated(kind: str, key: str, make) -> str:
     text = make()
     try:
         write_json(path, {"text": text, "sha1": hashlib.sha1(text.encode()).hexdigest()})
+        if keep is not None:
+            _prune(path, "*.json", keep)
     except OSError:
         pass
     return text
+
+
+def _prune(path: Path, pattern: str, keep: int) -> None:
+    """Remove all but the ``keep`` newest files of ``pattern`` beside ``path`` (which stays)."""
+    others = [p for p in path.parent.glob(pattern) if p != path]
+    for old in sorted(others, key=lambda p: p.stat().st_mtime, reverse=True)[keep - 1:]:
+        old.unlink(missing_ok=True)
 
 
 KEEP_ARRAYS = 4                   # generated_arrays: the newest files kept of one kind
@@ -98,10 +108,7 @@ def generated_arrays(kind: str, key: str, make) -> dict:
         tmp = path.with_name(f".{path.name}.tmp{os.getpid()}.npz")
         np.savez(tmp, **arrays)
         os.replace(tmp, path)
-        others = [p for p in path.parent.glob("*.npz") if p != path]
-        older = sorted(others, key=lambda p: p.stat().st_mtime, reverse=True)[KEEP_ARRAYS - 1:]
-        for old in older:
-            old.unlink(missing_ok=True)
+        _prune(path, "*.npz", KEEP_ARRAYS)
     except OSError:
         pass
     return arrays

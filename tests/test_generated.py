@@ -87,3 +87,43 @@ def test_generated_arrays_are_made_once_and_pruned(tmp_path, monkeypatch):
     assert len(list((tmp_path / "generated" / "t").glob("*.npz"))) == _cache.KEEP_ARRAYS
     (tmp_path / "generated" / "t" / "k9.npz").write_bytes(b"not a zip")
     assert _cache.generated_arrays("t", "k9", lambda: {"a": np.zeros(2)})["a"].size == 2
+
+
+def test_text_kept_of_one_kind_is_pruned(tmp_path, monkeypatch):
+    monkeypatch.setenv("BRDFCL_CACHE_DIR", str(tmp_path))
+    for i in range(5):
+        assert _cache.generated("kernel", f"k{i}", lambda i=i: f"text {i}", keep=3) == f"text {i}"
+    assert len(list((tmp_path / "generated" / "kernel").glob("*.json"))) == 3
+    assert _cache.generated("kernel", "k4", lambda: "made again", keep=3) == "text 4"
+
+
+_STARTUP = """
+import sys
+import numpy as np
+from brdfcl.data.geometry import table_geometry
+from brdfcl.device.engine import Engine
+from brdfcl.model.lobes.cells import Cells
+from brdfcl.model.compose import DEFAULT_MODEL
+from brdfcl.optim.forms import DEFAULT_FORMS, form_keys
+import brdfcl.app.cli, brdfcl.app.runner, brdfcl.report.writers
+for spec in form_keys(DEFAULT_MODEL, DEFAULT_FORMS).values():
+    engine = Engine(spec)
+    assert engine.self_test.ok, engine.self_test
+    cells = Cells.from_geometry(table_geometry(), np.arange(0, 1_000_000, 997))
+    engine.model.reference(cells, engine.model.defaults())
+print(sorted({m.split('.')[0] for m in sys.modules} & {'sympy', 'mako', 'scipy', 'matplotlib'}))
+"""
+
+
+def test_a_second_process_imports_no_generators():
+    # a fit's start (its engines, their self-tests, the float64 reference) once everything made
+    # from the code is kept: no SymPy, no Mako (and no scipy, no matplotlib) imported
+    import subprocess
+    import sys
+    run = lambda: subprocess.run([sys.executable, "-c", _STARTUP], capture_output=True, text=True,  # noqa: E731
+                                 timeout=600)
+    first = run()
+    assert first.returncode == 0, first.stderr[-2000:]
+    second = run()
+    assert second.returncode == 0, second.stderr[-2000:]
+    assert second.stdout.strip().splitlines()[-1] == "[]", second.stdout

@@ -1,7 +1,14 @@
 import numpy as np
 import pytest
 
-from brdfcl.data.geometry import DEFAULT_CUTOFF_DEG, bin_centres, directions, grid_directions, table_geometry
+from brdfcl.data.geometry import (
+    DEFAULT_CUTOFF_DEG,
+    bin_centres,
+    cells_geometry,
+    directions,
+    grid_directions,
+    table_geometry,
+)
 
 
 def test_directions_are_consistent():
@@ -50,3 +57,14 @@ def test_table_directions_are_the_general_formula():
     TH, TD, PD = (a.ravel() for a in np.meshgrid(th, td, pd, indexing="ij"))
     for a, b in zip(grid_directions(th, td, pd), directions(TH, TD, PD)):
         assert np.max(np.abs(a - b)) < 1e-15
+
+
+def test_cells_geometry_is_the_tables_at_those_cells():
+    g = table_geometry()
+    index = np.random.default_rng(3).integers(0, g.weight.size, 2000)
+    some = cells_geometry(index)
+    for name in ("theta_h", "theta_d", "phi_d", "weight"):
+        np.testing.assert_array_equal(getattr(some, name), getattr(g, name)[index])
+    np.testing.assert_allclose(some.wi, g.wi[index], atol=1e-15)
+    np.testing.assert_allclose(some.wo, g.wo[index], atol=1e-15)
+    np.testing.assert_array_equal(some.mask(), g.mask()[index])

@@ -155,6 +155,18 @@ def table_geometry() -> Geometry:
     return Geometry(TH, TD, PD, wi, wo, weight)
 
 
+def cells_geometry(index) -> Geometry:
+    """The geometry of the table cells ``index`` alone (as ``table_geometry()`` holds them there,
+    up to rounding), for a few cells without the whole table's 1.5 million."""
+    index = np.asarray(index)
+    i_th, rest = np.divmod(index, N_TD * N_PD)
+    i_td, i_pd = np.divmod(rest, N_PD)
+    th, td, pd = bin_centres()
+    wi, wo = directions(th[i_th], td[i_td], pd[i_pd])
+    w_th, w_td, w_pd = bin_weights()
+    return Geometry(th[i_th], td[i_td], pd[i_pd], wi, wo, w_th[i_th] * w_td[i_td] * w_pd[i_pd])
+
+
 class TableLayout(Layout):
     """The cells of the MERL table (90 x 90 x 180 Rusinkiewicz bins, in MERL cell order), each at
     its bin centre with its bin's exact measure (`table_geometry`): one object every MERL table

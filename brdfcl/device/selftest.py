@@ -14,7 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from brdfcl.data.geometry import table_geometry
+from brdfcl.data.geometry import N_CELLS as TABLE_CELLS
+from brdfcl.data.geometry import cells_geometry
 from brdfcl.model.lobes.cells import Cells
 from brdfcl.model.metrics import transform
 
@@ -34,11 +35,16 @@ class SelfTest:
 
 
 def _cells(cutoff_deg=80.0):
-    """N_CELLS valid cells spread over the table, the specular peak's rows included."""
-    g = table_geometry()
-    idx = np.flatnonzero(g.mask(cutoff_deg))
-    pick = np.unique(np.concatenate([idx[:N_CELLS // 4], idx[:: max(1, idx.size // (3 * N_CELLS // 4))]]))
-    return pick[:N_CELLS]
+    """(index, geometry) of N_CELLS valid table cells spread over the table, the specular peak's
+    first cells included; from the geometry of a few thousand cells, not of the whole table."""
+    near = np.arange(8 * N_CELLS)
+    spread = np.arange(0, TABLE_CELLS, TABLE_CELLS // (8 * N_CELLS))
+    candidates = np.unique(np.concatenate([near, spread]))
+    valid = cells_geometry(candidates).mask(cutoff_deg)
+    near, spread = candidates[valid & (candidates < near.size)], candidates[valid & np.isin(candidates, spread)]
+    pick = np.unique(np.concatenate([near[:N_CELLS // 4], spread[:: max(1, spread.size // (3 * N_CELLS // 4))]]))
+    pick = pick[:N_CELLS]
+    return pick, cells_geometry(pick)
 
 
 def _reference(model, cells, meas, w, values, metric, cosw):
@@ -61,15 +67,15 @@ def _rel(a, b):
 def check(engine) -> SelfTest:
     """Run every kernel of ``engine`` on known data and compare with the float64 reference."""
     model, opt = engine.model, engine.opt
-    idx = _cells()
-    cells = Cells.from_geometry(table_geometry(), idx)
-    w = table_geometry().weight[idx]
+    idx, geometry = _cells()
+    cells = Cells.from_geometry(geometry)
+    w = geometry.weight
     lo, hi = model.search_x_lo, model.search_x_hi
     values = np.stack([model.defaults(), model.from_x(lo + 0.37 * (hi - lo))])
     truth = model.reference(cells, model.from_x(lo + 0.61 * (hi - lo)), jacobian=False)
     ripple = 1 + 0.2 * np.sin(np.arange(idx.size))            # residuals that are not zero
     meas = truth * ripple
-    cs = engine.upload(["selftest"], idx, meas[None].astype(engine.dtype))
+    cs = engine.upload_cells(["selftest"], [cells], [w], [meas.astype(engine.dtype)])
     meas = meas.astype(engine.dtype).astype(np.float64)      # what the device holds
     mats = np.zeros(len(values), dtype=np.int32)
     tol = TOLERANCE[opt.real]

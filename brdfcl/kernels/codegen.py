@@ -13,15 +13,14 @@ from dataclasses import dataclass
 from functools import cache, lru_cache
 from pathlib import Path
 
-import sympy as sp
-from mako.template import Template
-
+from brdfcl._cache import generated
 from brdfcl.kernels import inline_math
 from brdfcl.kernels.terms import c_source, cell_source
 from brdfcl.model.compose import Model
 from brdfcl.model.lobes.lobe import Emitter
 from brdfcl.model.metrics import IMPLEMENTED_METRICS, check_metric
 from brdfcl.model.terms import REGISTRY
+from brdfcl.model.terms.keys import sympy_version
 
 
 def kernel_dir() -> Path:
@@ -46,7 +45,7 @@ def kernel_sources_hash() -> str:
     Decisions cached about compiled programs (brdfcl.device.width) are stale once any of them
     changes.  Hashing the inputs, not the generated C, keeps SymPy's generation of every term
     (seconds) out of every start-up."""
-    h = hashlib.sha1(sp.__version__.encode())
+    h = hashlib.sha1(sympy_version().encode())
     for p in sorted(kernel_dir().rglob("*")):
         if p.suffix in (".cl", ".mako"):
             h.update(p.relative_to(kernel_dir()).as_posix().encode() + b"\0" + p.read_bytes())
@@ -67,8 +66,13 @@ def kernel_sources_hash() -> str:
     return h.hexdigest()
 
 
+KEEP_RENDERED = 64
+"""Rendered programs kept on disk (the newest; one per model and kernel options)."""
+
+
 @lru_cache(maxsize=1)
-def _template() -> Template:
+def _template():
+    from mako.template import Template  # here: importing and compiling it costs a start-up 0.1 s
     return Template(filename=str(kernel_dir() / "model.cl.mako"), strict_undefined=True)
 
 
@@ -102,6 +106,8 @@ def term_sources(model: Model) -> list[str]:
 
 
 def render(model: Model, opt: KernelOptions) -> str:
+    """The program's OpenCL source: model.cl.mako rendered for ``model`` and ``opt``, kept in
+    brdfcl's cache under a hash of everything it is rendered from (a second process needs no Mako)."""
     em = emit(model)
     cols = set()
     pairs = jtj_pairs(model)
@@ -110,7 +116,7 @@ def render(model: Model, opt: KernelOptions) -> str:
     assert cols == set(range(model.n_free)), "every free parameter needs a Jacobian column"
     vec = "" if opt.vw == 1 else str(opt.vw)
     fit_g, fit_dg = IMPLEMENTED_METRICS[opt.metric].c("x", "g")    # metric_g / metric_dg
-    return _template().render(
+    kw = dict(
         spec=model.spec, real=opt.real, vw=opt.vw, wg=opt.local, chunk=opt.chunk,
         metric=opt.metric, cosw=opt.cosw, metric_g=fit_g, metric_dg=fit_dg,
         reported=[(m.name, m.c("xp")[0], m.c("xm")[0]) for m in IMPLEMENTED_METRICS.values()],
@@ -123,6 +129,8 @@ def render(model: Model, opt: KernelOptions) -> str:
         consts=["K_" + k.replace(".", "_") for k in model.const_names],
         n_prm=model.n_params + len(model.const_names), n_free=model.n_free,
         lines=em.lines, value=em.value, jac=em.jac, pairs=pairs)
+    key = hashlib.sha1((kernel_sources_hash() + repr(sorted(kw.items()))).encode()).hexdigest()[:24]
+    return generated("kernel", key, lambda: _template().render(**kw), keep=KEEP_RENDERED)
 
 
 def jtj_pairs(model: Model):

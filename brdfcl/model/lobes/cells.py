@@ -3,16 +3,19 @@
 A cell holds the five stored quantities (``sin th, cos th, cos td, cos ti, cos to``); every other
 one (``t2``, ``f0``, ``s5``, ``t2i``, ``t2o``, ``gv``, ``inv4cico``) is a property evaluated from
 its expression in brdfcl.model.terms.symbols.DERIVED, the same expression the kernels'
-``make_cell`` is printed from.
+``make_cell`` is printed from (as numpy, once per machine).
 """
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
-import sympy as sp
 
-from brdfcl.model.terms.symbols import BASE, DERIVED, NOTES
+from brdfcl._cache import generated
+from brdfcl.model.terms.keys import code_key
+from brdfcl.model.terms.reference import load, portable
 
 
 @dataclass
@@ -50,10 +53,20 @@ class Cells:
         return self.sh.size
 
 
-def _derived(symbol, expr):
-    f = sp.lambdify(BASE, expr, "numpy")
-    return property(lambda self: f(self.sh, self.ch, self.cd, self.ci, self.co), doc=NOTES[symbol])
+def _generate() -> str:
+    """Each derived quantity's numpy function of the stored five, lambdified, as JSON."""
+    import sympy as sp
+
+    from brdfcl.model.terms.symbols import BASE, DERIVED, NOTES
+    return json.dumps({s.name: {"doc": NOTES[s], **portable(sp.lambdify(BASE, e, "numpy"), f"cell {s.name}")}
+                       for s, e in DERIVED.items()})
 
 
-for _symbol, _expr in DERIVED.items():
-    setattr(Cells, _symbol.name, _derived(_symbol, _expr))
+def _derived(name: str, doc: dict) -> property:
+    f = load(doc, f"cell {name}")
+    return property(lambda self: f(self.sh, self.ch, self.cd, self.ci, self.co), doc=doc["doc"])
+
+
+# printed once per machine (brdfcl._cache.generated), so that making cells imports no SymPy
+for _name, _doc in json.loads(generated("cells", code_key(Path(__file__)), _generate)).items():
+    setattr(Cells, _name, _derived(_name, _doc))

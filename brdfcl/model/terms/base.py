@@ -4,18 +4,21 @@ A `Param` is one model parameter (bounds, default, log-space flag, unit).  A `Te
 parameters and its formula, a SymPy expression in the cell symbols of
 brdfcl.model.terms.symbols.  From the formula alone come its derivatives (SymPy), its float64
 reference (brdfcl.model.terms.reference) and its OpenCL function (brdfcl.kernels.terms), so a new
-term is one file that writes the formula and registers it.
+term is one file that writes the formula and registers it.  All three are kept on disk once made,
+so a formula imports SymPy and the cell symbols inside its function: a run that finds them made
+never imports SymPy (half a second of every start-up).
 """
 from __future__ import annotations
 
 import sys
 from dataclasses import dataclass, replace
 from functools import cache
-from typing import Callable
-
-import sympy as sp
+from typing import TYPE_CHECKING, Callable
 
 from brdfcl.model.terms.reference import evaluate
+
+if TYPE_CHECKING:
+    import sympy as sp
 
 
 @dataclass(frozen=True)
@@ -42,6 +45,7 @@ class Param:
 
     @property
     def symbol(self) -> sp.Symbol:
+        import sympy as sp
         return sp.Symbol(self.name, positive=True) if self.lo > 0 else sp.Symbol(self.name, real=True)
 
 
@@ -109,6 +113,7 @@ class Term:
 
     def symbols(self) -> dict[str, sp.Symbol]:
         """The input symbols, by name (a ``uses`` input is a positive real)."""
+        import sympy as sp
         out = {p.name: p.symbol for p in self.params}
         out.update({u: sp.Symbol(u, positive=True) for u in self.uses})
         return out
@@ -128,6 +133,7 @@ class Term:
 
 @cache
 def _expressions(term: Term):
+    import sympy as sp
     syms = term.symbols()
     inputs = [syms[n] for n in term.inputs]
     funcs = {k: sp.Function(k)(*inputs) for k in term.host}

@@ -10,7 +10,17 @@ import sys
 from functools import cache
 from pathlib import Path
 
-import sympy as sp
+
+@cache
+def sympy_version() -> str:
+    """The installed SymPy's version, read from its metadata: importing SymPy costs half a second,
+    which a run that finds its generated code made does not pay."""
+    from importlib.metadata import PackageNotFoundError, version
+    try:
+        return version("sympy")
+    except PackageNotFoundError:
+        import sympy
+        return sympy.__version__
 
 
 @cache
@@ -18,10 +28,19 @@ def _terms_files_hash() -> str:
     """A hash of every module of brdfcl.model.terms (this one, the cell symbols, the reference,
     the terms themselves): what every term's formula and its generated code are made from."""
     here = Path(__file__).resolve().parent
-    h = hashlib.sha1(sp.__version__.encode())
+    h = hashlib.sha1(sympy_version().encode())
     for f in sorted(here.rglob("*.py")):
         h.update(f.relative_to(here).as_posix().encode() + b"\0" + f.read_bytes())
     return h.hexdigest()
+
+
+def code_key(*files: Path) -> str:
+    """A hash of the terms' modules and of ``files`` (the code that prints or compiles what
+    they define): the key of text generated from the cell symbols rather than from one term."""
+    h = hashlib.sha1(_terms_files_hash().encode())
+    for f in files:
+        h.update(b"\0" + Path(f).read_bytes())
+    return h.hexdigest()[:24]
 
 
 @cache
@@ -35,6 +54,7 @@ def formula_key(term) -> str:
     if origin and Path(origin).is_file():
         h.update(Path(origin).read_bytes())
     else:
+        import sympy as sp
         value, derivs = term.expressions()
         h.update(repr(term.params).encode() + sp.srepr((value, tuple(derivs.items()))).encode())
     return h.hexdigest()[:24]

@@ -13,9 +13,8 @@ import json
 from functools import cache
 
 import numpy as np
-import sympy as sp
 
-from brdfcl.model.terms.symbols import CELL, EXP_LIMIT, f
+from brdfcl.model.terms.limits import EXP_LIMIT
 
 _CUSTOM = {"exp_clamped": lambda x: np.exp(np.minimum(x, EXP_LIMIT))}
 _MODULES = [_CUSTOM, "numpy", "scipy"]        # numpy first: its log1p, expm1 need no scipy import
@@ -29,24 +28,31 @@ def compiled(term):
     from brdfcl._cache import generated
     from brdfcl.model.terms.keys import formula_key
     doc = json.loads(generated("reference", formula_key(term), lambda: _generate(term)))
-    namespace = {}
-    for name, home in doc["globals"].items():
-        namespace[name] = _CUSTOM[name] if home == "brdfcl" else getattr(importlib.import_module(home), name)
-    exec(compile(doc["source"], f"<brdfcl reference {term.kind} {term.name}>", "exec"), namespace)
-    return tuple(doc["args"]), namespace[doc["function"]]
+    return tuple(doc["args"]), load(doc, f"reference {term.kind} {term.name}")
 
 
 def _generate(term) -> str:
-    """The lambdified function of a term as JSON: its source, argument names and where each
-    global it reads comes from (brdfcl's own functions, scipy.special or numpy)."""
+    """The lambdified function of a term as JSON (``portable``, with its argument names)."""
+    import sympy as sp
+
+    from brdfcl.model.terms.symbols import CELL, f
     value, derivs = term.expressions()
     exprs = [value, *derivs.values()]
     free = set().union(*(e.free_symbols for e in exprs))
     args = [s for s in (f, *CELL) if s in free]
     names = [*term.inputs, *term.const_names]
     syms = [term.symbols()[n] if n in term.inputs else sp.Symbol(n, real=True) for n in names]
-    import scipy.special  # here: importing it costs every start-up 0.1-0.2 s
+    import scipy.special  # noqa: F401  (lambdify's scipy module; here: importing it costs a start-up 0.1-0.2 s)
     fn = sp.lambdify([*args, *syms], exprs, modules=_MODULES, cse=True)
+    return json.dumps({"args": [s.name for s in args], **portable(fn, f"{term.kind} {term.name}")})
+
+
+def portable(fn, label: str) -> dict:
+    """A lambdified function as plain data: its source, its name and where each global it reads
+    comes from (brdfcl's own functions, scipy.special, numpy or functools), for ``load``."""
+    import functools
+
+    import scipy.special
     where = {}
     for name in fn.__code__.co_names:
         obj = fn.__globals__.get(name)
@@ -56,11 +62,21 @@ def _generate(term) -> str:
             where[name] = "scipy.special"
         elif getattr(np, name, None) is obj:
             where[name] = "numpy"
+        elif getattr(functools, name, None) is obj:
+            where[name] = "functools"
         else:
-            raise RuntimeError(f"{term.kind} {term.name}: the reference reads '{name}', which is not numpy's, "
-                               f"scipy.special's or brdfcl's")
-    return json.dumps({"args": [s.name for s in args], "source": inspect.getsource(fn), "function": fn.__name__,
-                       "globals": where})
+            raise RuntimeError(f"{label}: the generated function reads '{name}', which is not numpy's, "
+                               f"scipy.special's, functools' or brdfcl's")
+    return {"source": inspect.getsource(fn), "function": fn.__name__, "globals": where}
+
+
+def load(doc: dict, label: str):
+    """The function of a ``portable`` document, compiled in a namespace of what it reads."""
+    namespace = {}
+    for name, home in doc["globals"].items():
+        namespace[name] = _CUSTOM[name] if home == "brdfcl" else getattr(importlib.import_module(home), name)
+    exec(compile(doc["source"], f"<brdfcl {label}>", "exec"), namespace)
+    return namespace[doc["function"]]
 
 
 def evaluate(term, arg, **inputs):

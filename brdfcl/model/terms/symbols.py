@@ -1,7 +1,8 @@
 """The symbols a term's formula is written in: per-cell quantities and safe special functions.
 
-A formula (a SymPy expression) reads the cell through these symbols.  A cell stores five
-quantities (``BASE``); the others are defined here once, as expressions of those five
+A formula (a SymPy expression) reads the cell through these symbols; it imports them (and SymPy)
+where it is called, so that a run that finds the generated code made imports neither.  A cell
+stores five quantities (``BASE``); the others are defined here once, as expressions of those five
 (``DERIVED``): the float64 reference's ``brdfcl.model.lobes.cells.Cells`` evaluates them with
 numpy and the kernels' prologue ``make_cell`` (brdfcl.kernels.terms.cell_source) is printed from
 them, so that the reference and every kernel read the same quantities by the same names.
@@ -9,6 +10,8 @@ them, so that the reference and every kernel read the same quantities by the sam
 from __future__ import annotations
 
 import sympy as sp
+
+from brdfcl.model.terms.limits import EXP_LIMIT
 
 sh, ch, cd, ci, co = sp.symbols("sh ch cd ci co", positive=True)
 """sin theta_h, cos theta_h, cos theta_d, cos theta_i, cos theta_o."""
@@ -63,12 +66,6 @@ CELL = (sh, ch, cd, ci, co, t2, t2i, t2o, s5, gv)
 """Every per-cell symbol a term's formula may read, by the name the kernel's ``cell_t`` and
 ``Cells`` give it."""
 
-EXP_LIMIT = 40.0
-"""exp_clamped's cap on its argument.  exp(-e^40) is 0 in float and double alike, so capping the
-inner exponent of exp(-exp(x)) never changes a value, and e^40 ~ 2.4e17 times the normalisation
-of a sharp lobe (~1e8) still fits a float, where e^80 overflowed into inf * 0 = NaN."""
-
-
 class exp_clamped(sp.Function):
     """exp(min(x, EXP_LIMIT)): an exponential that cannot overflow a float.  Its derivative is
     taken as exp's (the cap is reached only where the term is ~0 anyway)."""
@@ -79,7 +76,25 @@ class exp_clamped(sp.Function):
         return exp_clamped(self.args[0])
 
 
+class expm1(sp.Function):
+    """e^z - 1, exact near 0.  Printed for the kernels (and so the GLSL export, which has no expm1)
+    as 2 sinh(z/2) exp(z/2), for the float64 reference as numpy's expm1; its derivative is written
+    expm1(z) + 1, so that a derivative reuses the value instead of calling another function."""
+
+    nargs = 1
+
+    def fdiff(self, argindex=1):
+        return self + 1
+
+    def _ccode(self, printer):
+        half = self.args[0] / 2
+        return f"({printer._print(2 * sp.sinh(half) * sp.exp(half))})"
+
+    def _pythoncode(self, printer):
+        return f"{printer._module_format('numpy.expm1')}({printer._print(self.args[0])})"
+
+
 from sympy.codegen.cfunctions import log1p  # noqa: E402  (re-exported: ln(1 + x), accurate near 0)
 
-__all__ = ["BASE", "CELL", "DERIVED", "EXP_LIMIT", "NOTES", "cd", "ch", "ci", "co", "exp_clamped", "f", "f0", "gv",
-           "inv4cico", "log1p", "s5", "sh", "t2", "t2i", "t2o"]
+__all__ = ["BASE", "CELL", "DERIVED", "EXP_LIMIT", "NOTES", "cd", "ch", "ci", "co", "exp_clamped", "expm1", "f",
+           "f0", "gv", "inv4cico", "log1p", "s5", "sh", "t2", "t2i", "t2o"]

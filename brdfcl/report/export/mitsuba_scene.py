@@ -48,7 +48,6 @@ import pprint
 import re
 from pathlib import Path
 from typing import Any
-from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
@@ -234,6 +233,12 @@ def _with_textures(bsdf: dict, name: str) -> tuple[dict, dict]:
     return walk(bsdf), files
 
 
+def _quoteattr(text: str) -> str:
+    """``text`` as a quoted XML attribute value."""
+    from xml.sax.saxutils import quoteattr  # here: it imports urllib, 50 ms of every start-up
+    return quoteattr(text)
+
+
 def _xml_value(name: str, value, indent: str) -> list[str]:
     if isinstance(value, dict) and value.get("type") == "rgb":
         return [f'{indent}<rgb name="{name}" value="{", ".join(f"{x:.9g}" for x in value["value"])}"/>']
@@ -243,12 +248,12 @@ def _xml_value(name: str, value, indent: str) -> list[str]:
     if isinstance(value, bool):
         return [f'{indent}<boolean name="{name}" value="{str(value).lower()}"/>']
     if isinstance(value, str):
-        return [f'{indent}<string name="{name}" value={quoteattr(value)}/>']
+        return [f'{indent}<string name="{name}" value={_quoteattr(value)}/>']
     return [f'{indent}<float name="{name}" value="{float(value):.9g}"/>']
 
 
 def _xml_object(tag: str, obj: dict, indent: str, name: str | None = None, id: str | None = None) -> list[str]:
-    attrs = f' type="{obj["type"]}"' + (f" id={quoteattr(id)}" if id else "") + (f' name="{name}"' if name else "")
+    attrs = f' type="{obj["type"]}"' + (f" id={_quoteattr(id)}" if id else "") + (f' name="{name}"' if name else "")
     lines = [f"{indent}<{tag}{attrs}>"]
     for k, v in obj.items():
         if k != "type":

@@ -31,7 +31,6 @@ from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
-from scipy import sparse
 
 from brdfcl._cache import generated_arrays
 from brdfcl.data.geometry import table_geometry
@@ -238,6 +237,7 @@ def _env_view(label, zenith, size):
     key = hashlib.sha1(repr((_sources(), tuple(zenith), size, ENV_STRIDE, GRAZING_LOG_RATIO,
                              sphere.half_vector_samples()[0].shape)).encode()).hexdigest()[:24]
     a = generated_arrays("report-env", key, lambda: _env_arrays(zenith, size))
+    from scipy import sparse  # here: importing it costs a start-up 0.2 s
     shape = (int(inside.sum()), a["cells"].size)
     weights = tuple(sparse.csr_matrix((a["data"][:, c], a["indices"], a["indptr"]), shape=shape) for c in range(3))
     return EnvView(label, zenith, size, inside, a["cells"], weights)
@@ -254,6 +254,7 @@ def _sources():
 def _env_arrays(zenith, size):
     """The environment operator as arrays: its table ``cells`` and one CSR pattern (``indptr``,
     ``indices``) with the weights of the three channels (``data``, (nnz, 3))."""
+    from scipy import sparse
     inside, n, t, b, wo = sphere.pixel_frames(size)
     pix, wi, weight = sphere.env_samples(n, t, b, wo, zenith)
     cell = nearest_cells(wi, wo[pix], ENV_STRIDE)

@@ -3,13 +3,13 @@ form (Pharr, Jakob, Humphreys, Physically Based Rendering, 3rd ed., sec. 8.2.1):
 t0 = eta^2 - k^2 - sin^2 td, S = sqrt(t0^2 + 4 eta^2 k^2) (= a^2 + b^2), a^2 = (S + t0) / 2,
 Rs = (S + c^2 - 2 a c) / (S + c^2 + 2 a c), Rp = Rs Q, Q = (c^2 S + s^4 - 2 a c s^2) / (c^2 S + s^4 + 2 a c s^2).
 a^2 is written 2 eta^2 k^2 / (S - t0) where t0 < 0, which is the same number without cancellation."""
-from sympy import Piecewise, Rational, sqrt
-
 from brdfcl.model.terms.base import Param, Term, register
-from brdfcl.model.terms.symbols import cd
 
 
 def conductor(eta, k):
+    from sympy import Piecewise, Rational, sqrt
+
+    from brdfcl.model.terms.symbols import cd
     c2 = cd**2
     s2 = 1 - c2
     t0 = eta**2 - k**2 - s2

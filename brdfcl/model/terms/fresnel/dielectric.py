@@ -1,13 +1,13 @@
 """Exact unpolarised Fresnel reflectance of a dielectric (Walter et al. 2007, eq. 22):
 g = sqrt(eta^2 - 1 + c^2), c = cos td, F = A^2 (1 + B^2) / 2,
 A = (g - c) / (g + c), B = (c (g + c) - 1) / (c (g - c) + 1)."""
-from sympy import Rational, sqrt
-
 from brdfcl.model.terms.base import Param, Term, register
-from brdfcl.model.terms.symbols import cd
 
 
 def dielectric(eta):
+    from sympy import Rational, sqrt
+
+    from brdfcl.model.terms.symbols import cd
     g = sqrt(eta**2 - 1 + cd**2)
     A = (g - cd) / (g + cd)
     B = (cd * (g + cd) - 1) / (cd * (g - cd) + 1)

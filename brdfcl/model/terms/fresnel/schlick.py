@@ -1,10 +1,10 @@
 """Schlick's approximation: F = F0 + (1 - F0) (1 - cos td)^5, F0 per channel
 (Schlick 1994, An inexpensive BRDF model for physically-based rendering)."""
 from brdfcl.model.terms.base import Param, Term, register
-from brdfcl.model.terms.symbols import s5
 
 
 def schlick(F0):
+    from brdfcl.model.terms.symbols import s5
     return F0 + (1 - F0) * s5
 
 

@@ -25,11 +25,9 @@ which holds the published fits (C ~0.5..6, B up to ~1e5).
 from __future__ import annotations
 
 import numpy as np
-from sympy import exp
 
 from brdfcl.model.terms.base import Param, Term, register
 from brdfcl.model.terms.ndf.gtr import expm1_over_x
-from brdfcl.model.terms.symbols import ch, log1p, t2
 
 SHARPNESS = Param("B", 0.1, 1e8, 200.0, log=True, search=(1.0, 1e6),
                   doc="ABC sharpness (B / 2 ~ 1 / alpha^2 at the peak; 1e8 is a mirror at MERL's resolution)")
@@ -69,6 +67,9 @@ def abc_consts(B, C):
 
 
 def abc(B, C, N):
+    from sympy import exp
+
+    from brdfcl.model.terms.symbols import ch, log1p, t2
     one_minus_cos = t2 * ch**2 / (1 + ch)
     return N * exp(-C * log1p(B * one_minus_cos))
 

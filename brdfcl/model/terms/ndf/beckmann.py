@@ -1,12 +1,12 @@
 """Beckmann: D = exp(-tan^2 th / alpha^2) / (pi alpha^2 cos^4 th) (Walter et al. 2007, eq. 25)."""
-from sympy import exp, pi
-
 from brdfcl.model.terms.base import Term, register
 from brdfcl.model.terms.ndf.ggx import ALPHA
-from brdfcl.model.terms.symbols import ch, t2
 
 
 def beckmann(alpha):
+    from sympy import exp, pi
+
+    from brdfcl.model.terms.symbols import ch, t2
     return exp(-t2 / alpha**2) / (pi * alpha**2 * ch**4)
 
 

@@ -3,10 +3,8 @@ D = N exp(-(tan^2 th / beta^2)^p) / cos^4 th, N = p / (pi beta^2 Gamma(1/p)) (ho
 from __future__ import annotations
 
 import numpy as np
-from sympy import exp, log
 
 from brdfcl.model.terms.base import Param, Term, register
-from brdfcl.model.terms.symbols import ch, exp_clamped, t2
 
 
 def epd_consts(beta, p):
@@ -17,6 +15,9 @@ def epd_consts(beta, p):
 
 
 def epd(beta, p, N):
+    from sympy import exp, log
+
+    from brdfcl.model.terms.symbols import ch, exp_clamped, t2
     q = exp_clamped(p * log(t2 / beta**2))      # (tan^2 th / beta^2)^p without overflow
     return N * exp(-q) / ch**4
 

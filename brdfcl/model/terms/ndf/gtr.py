@@ -23,11 +23,9 @@ E(s L) = E(L) and K = 1 / (pi alpha^2) exactly, GGX's D(0).
 from __future__ import annotations
 
 import numpy as np
-from sympy import exp, log
 
 from brdfcl.model.terms.base import Param, Term, register
 from brdfcl.model.terms.ndf.ggx import ALPHA
-from brdfcl.model.terms.symbols import ch, log1p, t2
 
 GAMMA = Param("gamma", 1.05, 4.0, 2.0, search=(1.1, 3.5),
               doc="GTR tail exponent: 2 is GGX, smaller a heavier tail (D(90) / D(0) = alpha^(2 gamma))")
@@ -67,6 +65,9 @@ def gtr_consts(alpha, gamma):
 
 
 def gtr(alpha, gamma, K):
+    from sympy import exp, log
+
+    from brdfcl.model.terms.symbols import ch, log1p, t2
     return K * exp(-gamma * (2 * log(ch) + log1p(t2 / alpha**2)))
 
 

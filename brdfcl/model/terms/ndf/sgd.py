@@ -8,10 +8,8 @@ computed on the host with its derivatives (``sgd_consts``).
 from __future__ import annotations
 
 import numpy as np
-from sympy import exp, log
 
 from brdfcl.model.terms.base import Param, Term, register
-from brdfcl.model.terms.symbols import ch, t2
 
 # Gamma(s, x) and dGamma/ds are integrated on t = x e^v with Gauss-Legendre nodes (the integrand
 # is smooth in v and the upper tail is cut where exp(-t) < 1e-26); dGamma/dx = -x^(s-1) e^-x.
@@ -42,6 +40,9 @@ def sgd_consts(alpha, p):
 
 
 def sgd(alpha, p, N):
+    from sympy import exp, log
+
+    from brdfcl.model.terms.symbols import ch, t2
     z = alpha**2 + t2
     return N * exp(-z / alpha - p * log(z)) / ch**4
 

@@ -1,13 +1,13 @@
 """ABC / K-correlation PSD (Church & Takacs 1991; Low et al. 2012), B folded into a:
 S(f) = (1 + f^2/a^2)^(-(c+1)/2); hp is c = 3."""
-from sympy import exp
-
 from brdfcl.model.terms.base import Param, Term, register
 from brdfcl.model.terms.psd.hp import A
-from brdfcl.model.terms.symbols import f, log1p
 
 
 def abc(a, c):
+    from sympy import exp
+
+    from brdfcl.model.terms.symbols import f, log1p
     return exp(-(c + 1) / 2 * log1p((f / a) ** 2))
 
 

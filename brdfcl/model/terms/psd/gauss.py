@@ -1,12 +1,12 @@
 """Gaussian PSD S(f) = exp(-f^2/a^2), for comparison."""
-from sympy import exp
-
 from brdfcl.model.terms.base import Term, register
 from brdfcl.model.terms.psd.hp import A
-from brdfcl.model.terms.symbols import f
 
 
 def gauss(a):
+    from sympy import exp
+
+    from brdfcl.model.terms.symbols import f
     return exp(-((f / a) ** 2))
 
 

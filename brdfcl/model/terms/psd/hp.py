@@ -1,7 +1,6 @@
 """The PSD of the talk (Holzschuch & Pacanowski, Identifying diffraction effects in measured BRDFs):
 S(f) = 1 / (1 + f^2/a^2)^2, a Fourier spectrum ~ 1/(1 + w^2) of a C0 surface, S(0) = 1."""
 from brdfcl.model.terms.base import Param, Term, register
-from brdfcl.model.terms.symbols import f
 
 A = Param("a", 0.1, 1e2, 1.0, log=True, unit="1/um", search=(0.1, 20.0),
           doc="PSD corner frequency (width of the diffraction lobe); the lower bound keeps the lobe "
@@ -9,6 +8,7 @@ A = Param("a", 0.1, 1e2, 1.0, log=True, unit="1/um", search=(0.1, 20.0),
 
 
 def hp(a):
+    from brdfcl.model.terms.symbols import f
     return 1 / (1 + (f / a) ** 2) ** 2
 
 

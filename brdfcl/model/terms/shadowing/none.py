@@ -1,6 +1,10 @@
 """No shadowing: G = 1."""
-from sympy import Integer
-
 from brdfcl.model.terms.base import Term, register
 
-register(Term("shadowing", "none", (), lambda: Integer(1), family="none", doc="G = 1"))
+
+def one():
+    from sympy import Integer
+    return Integer(1)
+
+
+register(Term("shadowing", "none", (), one, family="none", doc="G = 1"))

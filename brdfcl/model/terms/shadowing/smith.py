@@ -31,12 +31,12 @@ P(t) = alpha^2 / (alpha^2 + t^2) gives its closed form back, (sqrt(1 + alpha^2 t
 """
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
-import sympy as sp
 
-from brdfcl.model.terms.symbols import ci, co, t2i, t2o
+if TYPE_CHECKING:
+    import sympy as sp
 
 CITE = "Walter et al. 2007; Heitz 2014, Understanding the masking-shadowing function"
 
@@ -47,35 +47,24 @@ class Direction(NamedTuple):
     cos: sp.Expr
 
 
-INCIDENT, OUTGOING = Direction(t2i, ci), Direction(t2o, co)
+def incident() -> Direction:
+    from brdfcl.model.terms.symbols import ci, t2i
+    return Direction(t2i, ci)
+
+
+def outgoing() -> Direction:
+    from brdfcl.model.terms.symbols import co, t2o
+    return Direction(t2o, co)
 
 
 def separable(lam):
     """G = G1(i) G1(o), G1 = 1 / (1 + Lambda(direction)); ``lam(Direction, **inputs)``."""
-    return lambda **p: 1 / ((1 + lam(INCIDENT, **p)) * (1 + lam(OUTGOING, **p)))
+    return lambda **p: 1 / ((1 + lam(incident(), **p)) * (1 + lam(outgoing(), **p)))
 
 
 def correlated(lam):
     """G = 1 / (1 + Lambda(i) + Lambda(o))."""
-    return lambda **p: 1 / (1 + lam(INCIDENT, **p) + lam(OUTGOING, **p))
-
-
-class expm1(sp.Function):
-    """e^z - 1, exact near 0.  Printed for the kernels (and so the GLSL export, which has no expm1)
-    as 2 sinh(z/2) exp(z/2), for the float64 reference as numpy's expm1; its derivative is written
-    expm1(z) + 1, so that a derivative reuses the value instead of calling another function."""
-
-    nargs = 1
-
-    def fdiff(self, argindex=1):
-        return self + 1
-
-    def _ccode(self, printer):
-        half = self.args[0] / 2
-        return f"({printer._print(2 * sp.sinh(half) * sp.exp(half))})"
-
-    def _pythoncode(self, printer):
-        return f"{printer._module_format('numpy.expm1')}({printer._print(self.args[0])})"
+    return lambda **p: 1 / (1 + lam(incident(), **p) + lam(outgoing(), **p))
 
 
 def _nodes(n):
@@ -161,7 +150,7 @@ class SeriesLambda:
         from brdfcl.model.terms.base import Term
         self.base, self.inputs = base, tuple(inputs)
         self.host = tuple(f"c{k}" for k in range(SERIES_TERMS))
-        self.rule = Term("shadowing", f"{name}_rule", (), lambda **p: correction(OUTGOING, HOST_NODES, **p),
+        self.rule = Term("shadowing", f"{name}_rule", (), lambda **p: correction(outgoing(), HOST_NODES, **p),
                          uses=self.inputs, origin=origin)
         self._nodes = _Nodes(_COS, _COS, (1.0 - _COS ** 2) / _COS ** 2)
 
@@ -177,6 +166,7 @@ class SeriesLambda:
 
     def __call__(self, d: Direction, **p):
         """Lambda in the direction ``d``: ``p`` holds the inputs and the coefficients c_k."""
+        import sympy as sp
         x = (d.cos - _COS_LO) * sp.Float(2.0 / (1.0 - _COS_LO)) - 1
         series = sp.Integer(0)
         for c in reversed(self.host):

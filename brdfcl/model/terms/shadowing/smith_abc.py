@@ -15,28 +15,25 @@ B in [0.1, 1e8], C in [0.25, 8].
 (Heitz 2014, Understanding the masking-shadowing function, eq. 17 and 72 / 99; Low et al. 2012,
 section 5, for the distribution.)
 """
-from sympy import Integer, Piecewise, exp, log, pi, sqrt
-
-from brdfcl.model.terms.shadowing.smith import (
-    CITE,
-    SeriesLambda,
-    expm1,
-    lambda_from_density,
-    register_series,
-)
-from brdfcl.model.terms.symbols import log1p
+from brdfcl.model.terms.shadowing.smith import CITE, SeriesLambda, lambda_from_density, register_series
 
 _SERIES_BELOW = 1e-6
 
 
 def _g(k, ell):
     """expm1(k l) / k, continuous through k = 0 (|k| as k^2: GLSL has no fabs)."""
+    from sympy import Piecewise
+
+    from brdfcl.model.terms.symbols import expm1
     return Piecewise((ell * (1 + k * ell / 2 + (k * ell) ** 2 / 6), k**2 < _SERIES_BELOW**2),
                      (expm1(k * ell) / k, True))
 
 
 def abc_lambda(d, n, B, C):
     """ABC's Lambda in the direction ``d`` by the n-node rule."""
+    from sympy import exp, log, pi, sqrt
+
+    from brdfcl.model.terms.symbols import log1p
     ell = log1p(B)
     N = B**2 / (2 * pi * ((1 + B) * _g(1 - C, ell) - _g(2 - C, ell)))
 
@@ -46,6 +43,12 @@ def abc_lambda(d, n, B, C):
     return lambda_from_density(d.tan2, density, n)
 
 
-LAMBDA_ABC = SeriesLambda("smith_abc", ("B", "C"), lambda d, B, C: Integer(0), abc_lambda, __name__)
+def _no_base(d, B, C):
+    """ABC's series corrects nothing: the whole Lambda is the rule's."""
+    from sympy import Integer
+    return Integer(0)
+
+
+LAMBDA_ABC = SeriesLambda("smith_abc", ("B", "C"), _no_base, abc_lambda, __name__)
 CITE_ABC = CITE + "; Low et al. 2012 (ABC)"
 register_series(LAMBDA_ABC, "abc", CITE_ABC)

@@ -1,12 +1,11 @@
 """Smith shadowing-masking for Beckmann (Walter et al. 2007, eq. 27):
 a = 1 / (alpha tan theta), Lambda = (exp(-a^2) / (a sqrt(pi)) - erfc(a)) / 2."""
-from sympy import erfc, exp, pi, sqrt
-
 from brdfcl.model.terms.base import Term, register
 from brdfcl.model.terms.shadowing.smith import CITE, correlated, separable
 
 
 def lambda_beckmann(d, alpha):
+    from sympy import erfc, exp, pi, sqrt
     a = 1 / (alpha * sqrt(d.tan2))
     return (exp(-a**2) / (a * sqrt(pi)) - erfc(a)) / 2
 

@@ -1,12 +1,11 @@
 """Smith shadowing-masking for GGX (Walter et al. 2007, eq. 34):
 Lambda = (sqrt(1 + alpha^2 tan^2) - 1) / 2, written without cancellation."""
-from sympy import sqrt
-
 from brdfcl.model.terms.base import Term, register
 from brdfcl.model.terms.shadowing.smith import CITE, correlated, separable
 
 
 def lambda_ggx(d, alpha):
+    from sympy import sqrt
     u = alpha**2 * d.tan2
     return u / (2 * (1 + sqrt(1 + u)))
 

@@ -18,20 +18,15 @@ The error against the exact Lambda (the hemisphere integral of D's own reference
 bench/lambda_gtr.py (bench/results/lambda_gtr.md), over the whole box alpha 1e-4..1, gamma 1.05..4.
 (Heitz 2014, Understanding the masking-shadowing function, eq. 17 for Lambda and 72 / 99 for G.)
 """
-from sympy import Piecewise, exp, log, pi
-
-from brdfcl.model.terms.shadowing.smith import (
-    CITE,
-    SeriesLambda,
-    expm1,
-    lambda_from_density,
-    register_series,
-)
+from brdfcl.model.terms.shadowing.smith import CITE, SeriesLambda, lambda_from_density, register_series
 from brdfcl.model.terms.shadowing.smith_ggx import lambda_ggx
 
 
 def gtr_correction(d, n, alpha, gamma):
     """Lambda_gtr - Lambda_ggx in the direction ``d`` by the n-node rule."""
+    from sympy import Piecewise, exp, log, pi
+
+    from brdfcl.model.terms.symbols import expm1
     s = gamma - 1
     a2 = alpha**2
     # at alpha = 1 (D uniform, = GGX's for any gamma) the correction is 0 and c's 0/0 is not formed:
