@@ -467,17 +467,24 @@ def _he_distribution(tau: float, sigma: float, wi: np.ndarray, wo: np.ndarray) -
     with np.errstate(divide="ignore", invalid="ignore"):
         rough = np.where(approx, np.exp(-base / g) / g, 0.0)
     weight = np.where(approx, np.clip(gmin - _HE_ROUGH_G, 0.0, 1.0), 0.0)
-    total, gm, term = np.zeros_like(g), np.ones_like(g), np.zeros_like(g)
-    converged = gmin - 1.0 > _HE_ROUGH_G
+    total = np.zeros_like(g)
+    live = np.flatnonzero(~(gmin - 1.0 > _HE_ROUGH_G))           # the pairs whose sum has not converged
+    g_l, base_l = g[:, live], base[:, live]
+    s_l, gm, term = np.zeros_like(g_l), np.ones_like(g_l), np.zeros_like(g_l)
     for m in range(1, _HE_TAYLOR_TERMS + 1):
-        if converged.all():
+        if live.size == 0:
             break
         last = term
-        gm = gm * (g / m)
-        term = np.exp(-g - base / m) * gm / m
-        total = total + np.where(converged, 0.0, term)
-        tmin = term.min(axis=0)
-        converged = converged | ((tmin < _EPS) & (tmin < last.min(axis=0)))
+        gm = gm * (g_l / m)
+        term = np.exp(-g_l - base_l / m) * gm / m
+        s_l = s_l + term
+        tmin = np.minimum(np.minimum(term[0], term[1]), term[2])
+        done = (tmin < _EPS) & (tmin < np.minimum(np.minimum(last[0], last[1]), last[2]))
+        total[:, live[done]] = s_l[:, done]
+        keep = ~done
+        live, g_l, base_l, s_l, gm, term = live[keep], g_l[:, keep], base_l[:, keep], s_l[:, keep], gm[:, keep], \
+            term[:, keep]
+    total[:, live] = s_l
     blend = np.where(weight == 1.0, rough, total + weight * (rough - total))     # std::lerp
     return norm * blend
 
