@@ -13,7 +13,7 @@ Errors are sampled during each run.  Outputs in --out: fit_curves.csv (method, s
 material, seconds, rmse_log, rmse_l2, rmse_cbrt), fit_vs_time.png and bench_fit.md (time to
 reach the scipy fit's and the PyTorch fit's final errors, speed-ups, the whole database on each
 --devices PoCL against the peers extrapolated).  --published instead compares brdfcl's fits of
-every material with the published SGD and ABC fits (bench/compare_published.py).
+every material with the published fits of bench/published.py (bench/compare_published.py).
 
     python bench/bench_fit.py [--data DIR] [--all] [--stability] [--devices 'pocl 3.0']
     python bench/bench_fit.py --published [--published-models MODEL,MODEL]
@@ -234,7 +234,8 @@ def main(argv=None):
                          "default setting and the whole-database time are measured on each as well")
     ap.add_argument("--database-runs", type=int, default=3, help="whole-database fits per device (median)")
     ap.add_argument("--published", action="store_true",
-                    help="instead: brdfcl's fits against the published SGD and ABC fits on every material of --data "
+                    help="instead: brdfcl's fits against the published fits (bench/published.py) on every material "
+                         "of --data "
                          "(bench/compare_published.py; writes published.md and published.csv)")
     ap.add_argument("--published-models", default=f"default,{DEFAULT_MODEL}",
                     help="brdfcl models compared with --published (comma-separated; the first is the one ranked; "
