@@ -37,11 +37,10 @@ class SelfTest:
 def _cells(cutoff_deg=80.0):
     """(index, geometry) of N_CELLS valid table cells spread over the table, the specular peak's
     first cells included; from the geometry of a few thousand cells, not of the whole table."""
-    near = np.arange(8 * N_CELLS)
-    spread = np.arange(0, TABLE_CELLS, TABLE_CELLS // (8 * N_CELLS))
-    candidates = np.unique(np.concatenate([near, spread]))
-    valid = cells_geometry(candidates).mask(cutoff_deg)
-    near, spread = candidates[valid & (candidates < near.size)], candidates[valid & np.isin(candidates, spread)]
+    def valid(index):
+        return index[cells_geometry(index).mask(cutoff_deg)]
+    near = valid(np.arange(8 * N_CELLS))
+    spread = valid(np.arange(0, TABLE_CELLS, TABLE_CELLS // (8 * N_CELLS)))
     pick = np.unique(np.concatenate([near[:N_CELLS // 4], spread[:: max(1, spread.size // (3 * N_CELLS // 4))]]))
     pick = pick[:N_CELLS]
     return pick, cells_geometry(pick)
