@@ -157,6 +157,29 @@ def test_flags_fire_on_non_physical_fit():
     assert lines[1].startswith("ct.alpha = 0.0001 at its lower bound")
 
 
+def test_lobes_that_trade_places_are_flagged_where_both_give_a_share():
+    """Two lobes' amplitudes correlated beyond TRADE_LIMIT in a channel: one line naming the lobes
+    and channels, unless one of them gives under TRADE_SHARE of their albedo there."""
+    from brdfcl.optim.assessment import TRADE_LIMIT, TRADE_SHARE, trades
+    from brdfcl.optim.uncertainty import Uncertainty
+    m = Model("diffuse+diffraction+ggx:smith:schlick")
+    names = [n for n in m.names if n != "diffraction.a"]
+    corr = np.eye(len(names))
+    for c, r in zip("rgb", (-1.0, -0.995, -0.5)):
+        i, j = names.index(f"diffuse.rho_{c}"), names.index(f"diffraction.rho_{c}")
+        corr[i, j] = corr[j, i] = r
+    unc = Uncertainty({n: 0.01 for n in names}, names, corr, "test")
+    assert -0.995 < -TRADE_LIMIT
+    (line,) = trades(m, unc)
+    assert line.startswith("lobes diffraction and diffuse trade places in channels r, g (amplitude "
+                           "correlation -1.000 in r)")
+    both = {"diffuse": np.full((1, 3), 0.3), "diffraction": np.full((1, 3), 0.1), "ct": np.full((1, 3), 0.5)}
+    assert len(trades(m, unc, both)) == 1
+    tiny = {**both, "diffraction": np.full((1, 3), 0.3 * TRADE_SHARE / 2)}
+    assert trades(m, unc, tiny) == []
+    assert trades(m, Uncertainty({n: 0.01 for n in names}, names, np.eye(len(names)), "test"), both) == []
+
+
 def test_albedo_on_the_engine_is_the_reference():
     """The assessment's albedo of every fit in one predict launch matches the float64 reference."""
     try:

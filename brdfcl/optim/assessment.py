@@ -18,6 +18,8 @@ from brdfcl.optim.uncertainty import Uncertainty, json_number, standard_errors
 _log = logging.getLogger("brdfcl")
 
 RELATIVE_ERROR_LIMIT = 1.0              # flag a parameter whose standard error exceeds |value|
+TRADE_LIMIT = 0.99                      # flag two lobes' amplitudes in one channel correlated beyond this
+TRADE_SHARE = 0.05                      # ... where each gives at least this share of the channel's albedo
 
 
 def evaluate(objective: Objective, target: Target, done: StageResult) -> StageResult:
@@ -41,9 +43,11 @@ def albedo_json(albedo_row: np.ndarray, theta_i_deg: Sequence[float] = ALBEDO_TH
 
 # --- flags ---------------------------------------------------------------------------------------
 def flags(model: Model, values: np.ndarray, at_bound: Sequence[str] = (), unc: Uncertainty | None = None,
-          albedo_row: np.ndarray | None = None, theta_i_deg: Sequence[float] = ALBEDO_THETA_DEG) -> list[str]:
+          albedo_row: np.ndarray | None = None, theta_i_deg: Sequence[float] = ALBEDO_THETA_DEG,
+          lobe_albedo: dict | None = None) -> list[str]:
     """One line per reason not to take a fit at face value: energy conservation broken (albedo above
-    1 in a channel), parameters at a bound, parameters the data leave undetermined."""
+    1 in a channel), parameters at a bound, parameters the data leave undetermined, lobes that trade
+    places (``lobe_albedo``: {lobe prefix: (angles, channels)} each lobe's own albedo, see `trades`)."""
     out = []
     if albedo_row is not None:
         a = np.asarray(albedo_row, dtype=np.float64)
@@ -66,6 +70,39 @@ def flags(model: Model, values: np.ndarray, at_bound: Sequence[str] = (), unc: U
             val = v[model.names.index(name)]
             if s is not None and s > RELATIVE_ERROR_LIMIT * abs(val):
                 out.append(f"{name} = {val:.4g} poorly determined: standard error {s:.3g} exceeds its value")
+        out += trades(model, unc, lobe_albedo)
+    return out
+
+
+def trades(model: Model, unc: Uncertainty, lobe_albedo: dict | None = None) -> list[str]:
+    """Lobes that trade places: in some channels the amplitudes of two lobes correlated beyond
+    TRADE_LIMIT (in magnitude), so that the data fix what they give together far better than how
+    they split it (a broad reflection lobe standing in for the diffuse, a flat diffraction halo for
+    either), and, with ``lobe_albedo`` ({prefix: (angles, channels)}), each of the two giving at
+    least TRADE_SHARE of their summed albedo at the first angle (a lobe with next to nothing to
+    give away changes no value that matters).  One line per pair of lobes, naming the channels and
+    the strongest correlation."""
+    def shares(la: str, lb: str, c: int) -> bool:
+        if lobe_albedo is None or la not in lobe_albedo or lb not in lobe_albedo:
+            return True
+        a, b = float(lobe_albedo[la][0][c]), float(lobe_albedo[lb][0][c])
+        return bool(np.isfinite(a) and np.isfinite(b) and min(a, b) >= TRADE_SHARE * (a + b) > 0)
+    slots = {s.name: s for s in model.slots if s.amplitude}
+    at = {n: k for k, n in enumerate(unc.names) if n in slots}
+    corr = np.asarray(unc.correlation, dtype=np.float64)
+    found: dict[tuple[str, str], list[tuple[str, float]]] = {}
+    for a, i in at.items():
+        for b, j in at.items():
+            sa, sb, c = slots[a], slots[b], slots[a].channel
+            if (c is not None and sa.lobe < sb.lobe and c == sb.channel and abs(corr[i, j]) > TRADE_LIMIT
+                    and shares(sa.lobe, sb.lobe, c)):
+                found.setdefault((sa.lobe, sb.lobe), []).append((model.channels[c], float(corr[i, j])))
+    out = []
+    for (la, lb), chans in found.items():
+        worst = max(chans, key=lambda c: abs(c[1]))
+        out.append(f"lobes {la} and {lb} trade places in channel{'s' * (len(chans) > 1)} "
+                   f"{', '.join(c for c, _ in chans)} (amplitude correlation {worst[1]:+.3f} in {worst[0]}): the data "
+                   f"fix their sum there, not how it splits between them")
     return out
 
 
@@ -102,7 +139,13 @@ def _assess(objective, target, data, values, rows, at_bound):
                               at_bound=[at_bound[j] for j in sel], extra_hessian=None if extra is None else extra[sel])
         for j, u in zip(sel, got):
             unc[j] = u
-    alb = directional_albedo(model, np.where(finite[:, None], values, model.defaults()), engine=objective.engine)
+    safe = np.where(finite[:, None], values, model.defaults())
+    lobes = [lb.prefix for lb in model.lobes]
+    amp = np.array([s.amplitude for s in model.slots])
+    own = [np.where(amp & (np.array([s.lobe for s in model.slots]) != p), 0.0, safe) for p in lobes]
+    every = directional_albedo(model, np.concatenate([safe] + own), engine=objective.engine)
+    alb = every[:len(rows)]
+    per_lobe = every[len(rows):].reshape(len(lobes), len(rows), *alb.shape[1:])
     out = []
     for j in range(len(rows)):
         if not finite[j]:
@@ -110,5 +153,6 @@ def _assess(objective, target, data, values, rows, at_bound):
                         "flags": ["not assessed: non-finite parameters"]})
             continue
         out.append({"uncertainty": unc[j].as_json(), "albedo": albedo_json(alb[j]),
-                    "flags": flags(model, values[j], at_bound[j], unc[j], alb[j])})
+                    "flags": flags(model, values[j], at_bound[j], unc[j], alb[j],
+                                   lobe_albedo={p: per_lobe[k, j] for k, p in enumerate(lobes)})})
     return out
