@@ -145,7 +145,7 @@ def test_fit_all_help_says_what_it_fits_without_model(capsys):
     keys = ", ".join(form_keys(FitOptions().model, chosen))
     assert f"without --model: diffuse + diffraction + a reflection lobe whose form is chosen per material " \
            f"among {keys}" in text
-    assert f"reflection lobe in each of the forms {keys} (NDF:Fresnel)" in text
+    assert f"reflection lobe in each of the forms {keys} (NDF[:shadowing]:Fresnel)" in text
     assert f"(default {FitOptions().model}" not in text.split("--metric")[0]     # not a model of its own
     # only a model asked for is fitted as given
     args = parse(["fit-all", "--demo", "--out", "o", "--model", FitOptions().model])

@@ -81,8 +81,9 @@ def default_fit_text(model: str, forms: str, short: bool = False) -> str:
     keys = ", ".join(form_keys(model, forms))
     if short:
         return f"{lobes} whose form is chosen per material among {keys}, see --forms"
-    return (f"each material is fitted with {lobes} in each of the forms {keys} (NDF:Fresnel) and the form "
-            "of least penalised error is kept (see --forms)")
+    return (f"each material is fitted with {lobes} in each of the forms {keys} (NDF[:shadowing]:Fresnel), "
+            "forms far behind on every 8th cell left out there, and the form of least penalised error is "
+            "kept (see --forms)")
 
 
 class Parser(argparse.ArgumentParser):
@@ -466,7 +467,8 @@ def build_parser():
     p.add_argument("--forms", default=None, metavar="FORMS",
                    help="fit each material's reflection lobe in each of these forms and keep the one of least "
                         "penalised error (as --select-lobes chooses lobes): NDF:FRESNEL pairs, e.g. "
-                        "gtr:dielectric,abc:schlick, or every NDF with every Fresnel, e.g. ggx,gtr:schlick,dielectric; "
+                        "gtr:dielectric,abc:schlick, with NDF:SHADOWING:FRESNEL triples, e.g. "
+                        "beckmann:vcavity:schlick, or every NDF with every Fresnel, e.g. ggx,gtr:schlick,dielectric; "
                         f"'none': the model as given (default: {DEFAULT_FORMS} unless --model or --fix is given)")
     p.add_argument("--workers", type=int, default=0,
                    help="fit on a local Dask cluster of N workers (pip install brdfcl[cluster])")

@@ -66,7 +66,8 @@ def fit_all(source, out=None, options: FitOptions | None = None, batch=100, expo
     ``forms``: the candidate forms of the reflection lobe (brdfcl.optim.forms): each material is
     fitted in each and the form of least penalised error kept, recorded in NAME.json (``form``,
     ``form_errors``); with ``select_lobes`` its lobes are then compared in that form.  A list of
-    NDF:FRESNEL pairs (``gtr:dielectric,abc:schlick``) or ``NDF[,NDF...][:FRESNEL[,FRESNEL...]]``;
+    NDF:FRESNEL pairs (``gtr:dielectric,abc:schlick``, with NDF:SHADOWING:FRESNEL triples such as
+    ``beckmann:vcavity:schlick``) or ``NDF[,NDF...][:FRESNEL[,FRESNEL...]]``;
     ``"default"``: brdfcl.optim.forms.DEFAULT_FORMS for the default model with nothing fixed (a
     ``model`` keyword is a model asked for: it is fitted as given); None or ``"none"``: the model as
     given."""

@@ -174,6 +174,13 @@ class Fitter:
             log: Callable[[str], None] = _quiet, start_values: np.ndarray | None = None) -> list[FitResult]:
         """The pipeline on targets already on the device (``full_data``: their values, for the
         uncertainty); ``start_values``: see `fit`."""
+        return self.complete(self.begin(names, t, full_data, t0, on_result, log, start_values), log)
+
+    def begin(self, names: list[str], t: Targets, full_data: np.ndarray, t0: float,
+              on_result: Callable[[FitResult], None] | None = None,
+              log: Callable[[str], None] = _quiet, start_values: np.ndarray | None = None) -> Begun:
+        """`run` up to the full-table stage: the global search (or the warm start) and, with a
+        preview set, Levenberg-Marquardt on it to convergence; `complete` finishes it."""
         o, objective = self.opts, self.objective
         batch = _Batch(self, names, full_data, t.full, on_result, t0)
         ranking = t.full if t.preview is None else t.preview    # a few starts need no full table
@@ -192,11 +199,63 @@ class Fitter:
             batch.previewed(previewed)
             x0 = previewed.x
             local = replace(o, probe_dead_lobes=False, lm=replace(o.lm, max_iter=o.preview_final_iter))
-        for step in refine(objective, t.full, x0, options=local, log=log):
-            batch.progress(step.running, step.loss, step.finished.mat)
-            if step.finished.mat.size:
-                batch.finish(_finished_status(evaluate(objective, t.full, step.finished), previewed, step.start, o))
-        return batch.results()
+        batch.suspend()
+        return Begun(self, t, batch, x0, local, previewed)
+
+    def complete(self, b: Begun, log: Callable[[str], None] = _quiet,
+                 mats: np.ndarray | None = None) -> list[FitResult]:
+        """The full-table stage of a `begin`, for the materials ``mats`` (default: all), their
+        results in that order; each material is completed once."""
+        objective, t = self.objective, b.targets
+        rows = np.arange(len(b.batch.names)) if mats is None else np.asarray(mats, dtype=int)
+        b.batch.resume()
+        if rows.size:
+            for step in refine(objective, t.full, b.x0[rows], options=b.local, log=log, mats=rows):
+                b.batch.progress(step.running, step.loss, step.finished.mat)
+                if step.finished.mat.size:
+                    b.batch.finish(_finished_status(evaluate(objective, t.full, step.finished), b.previewed,
+                                                    step.start, self.opts))
+        out = b.batch.results(rows)
+        b.batch.suspend()
+        return out
+
+
+@dataclass
+class Begun:
+    """A batch's fit up to its full-table stage (`Fitter.begin`): the start of that stage per
+    material, and, with a preview set, where Levenberg-Marquardt converged on it."""
+
+    fitter: Fitter
+    targets: Targets
+    batch: _Batch
+    x0: np.ndarray                   # (n, k) optimiser space: each material's start on the full table
+    local: FitOptions                # the full-table stage's options
+    previewed: StageResult | None    # the preview pass (None: no preview set)
+
+    def values(self) -> np.ndarray:
+        """(n, parameters) natural values at the full-table stage's start."""
+        return self.fitter.objective.spaces.values(self.x0)
+
+    def estimate(self) -> np.ndarray | None:
+        """(n,) each material's rmse in the fit metric on the preview cells (weighted to stand for
+        the full table), penalties included; None without a preview."""
+        if self.previewed is None:
+            return None
+        return np.sqrt(np.maximum(self.previewed.fun, 0) / self.targets.full.scale)
+
+    def starts(self) -> list[StartPoint]:
+        """Each material's full-table start as a source for another form's warm start."""
+        model = self.fitter.model
+        ok = np.ones(len(self.x0), dtype=bool) if self.previewed is None else self.previewed.success
+        return [StartPoint(model.as_dict(v), bool(s)) for v, s in zip(self.values(), ok)]
+
+
+@dataclass(frozen=True)
+class StartPoint:
+    """A fit's parameters where a warm start can read them (as a FitResult's)."""
+
+    params: dict
+    success: bool
 
 
 def same_cells(a: Fitter, b: Fitter) -> bool:
@@ -278,6 +337,8 @@ class _Batch:
         self.t_global = self.t_assess = 0.0
         self.share = np.zeros(len(names))
         self.mark = 0.0
+        self.idle = 0.0                 # time suspended (other forms' stages run meanwhile)
+        self.suspended: float | None = None
 
     def spend(self, mats) -> float:
         """Split the time since the last mark among ``mats``; the time now."""
@@ -289,7 +350,18 @@ class _Batch:
         return t
 
     def now(self) -> float:
-        return time.perf_counter() - self.t0
+        return time.perf_counter() - self.t0 - self.idle
+
+    def suspend(self) -> None:
+        """Stop the clock: what runs until `resume` is not this batch's."""
+        self.spend([])
+        self.suspended = time.perf_counter()
+
+    def resume(self) -> None:
+        if self.suspended is not None:
+            self.idle += time.perf_counter() - self.suspended
+            self.mark = self.now()
+            self.suspended = None
 
     def started(self, found: StageResult, loss: np.ndarray) -> None:
         """The global stage is over: ``found`` its result, ``loss`` the starts' (on the preview cells:
@@ -335,11 +407,11 @@ class _Batch:
             if self.on_result:
                 self.on_result(res)
 
-    def results(self) -> list[FitResult]:
-        """Every material's result in batch order, with the time of each stage."""
+    def results(self, rows: np.ndarray) -> list[FitResult]:
+        """The results of the materials ``rows``, in that order, with the time of each stage."""
         t_total = self.now()
-        out = [r for r in self.done if r is not None]
-        assert len(out) == len(self.names), "a material did not finish"
+        out = [r for r in (self.done[i] for i in rows) if r is not None]
+        assert len(out) == len(rows), "a material did not finish"
         for r in out:
             r.stages["local"] = t_total - self.t_global - self.t_assess
             if self.fitter.assess_results:

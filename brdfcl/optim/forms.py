@@ -25,15 +25,18 @@ from dataclasses import replace
 
 import numpy as np
 
+from brdfcl._words import count
 from brdfcl.model.compose import Model, ModelError, parse_lobe
 from brdfcl.optim.assessment import assess
-from brdfcl.optim.fit import FitOptions, FitResult, Fitter, same_cells
+from brdfcl.optim.fit import Begun, FitOptions, FitResult, Fitter, same_cells
 from brdfcl.optim.selection import select
 
 NDF_FORMS = ("ggx", "gtr", "beckmann")
 FRESNEL_FORMS = ("schlick", "dielectric")
-DEFAULT_FORMS = "gtr:dielectric,abc:schlick"
-"""GTR with a dielectric Fresnel (its own global search) and ABC with Schlick's (from the GTR fits)."""
+DEFAULT_FORMS = "gtr:dielectric,abc:schlick,gtr:schlick,beckmann:schlick,beckmann:vcavity:schlick"
+"""GTR with a dielectric Fresnel (its own global search), then from its fits ABC and GTR with
+Schlick's (an F0 per channel: GGX metals are GTR at gamma = 2), Beckmann from the ABC fits, and
+Cook & Torrance's own form (Beckmann, V-cavity shadowing) from the Beckmann fits."""
 
 
 def parse_forms(text: str) -> tuple[tuple[str, ...], tuple[str, ...]]:
@@ -54,26 +57,38 @@ def parse_forms(text: str) -> tuple[tuple[str, ...], tuple[str, ...]]:
 
 
 def form_keys(spec: str, text: str) -> dict[str, str]:
-    """{'ndf:fresnel': model spec} for a ``--forms`` text: a list of NDF:FRESNEL pairs
-    (``gtr:dielectric,abc:schlick``), or every NDF with every Fresnel (``NDF[,NDF...][:FRESNEL[,...]]``,
-    a part left out keeping the model's own).  ModelError names an unknown word or an impossible form."""
+    """{form key: model spec} for a ``--forms`` text: a list of NDF:FRESNEL pairs
+    (``gtr:dielectric,abc:schlick``) or NDF:SHADOWING:FRESNEL triples (``beckmann:vcavity:schlick``,
+    the shadowing given instead of the model's own), or every NDF with every Fresnel
+    (``NDF[,NDF...][:FRESNEL[,...]]``, a part left out keeping the model's own).  ModelError names an
+    unknown word or an impossible form."""
+    from brdfcl.model.terms import REGISTRY
     if not text.strip():
         raise ModelError("forms '': give NDF:FRESNEL pairs (gtr:dielectric,abc:schlick), NDFS[:FRESNELS] or none")
     if text.count(":") > 1:
-        pairs = [w.strip().lower().split(":") for w in text.split(",") if w.strip()]
-        if any(len(p) != 2 or not all(p) for p in pairs):
-            raise ModelError(f"forms '{text}': a list of NDF:FRESNEL pairs, or NDFS[:FRESNELS]")
+        forms = [w.strip().lower().split(":") for w in text.split(",") if w.strip()]
+        if any(len(p) not in (2, 3) or not all(p) for p in forms):
+            raise ModelError(f"forms '{text}': a list of NDF:FRESNEL pairs or NDF:SHADOWING:FRESNEL triples, "
+                             "or NDFS[:FRESNELS]")
         out = {}
-        for ndf, fresnel in pairs:
-            out.update(form_variants(spec, *parse_forms(f"{ndf}:{fresnel}")))
+        for form in forms:
+            shadowing = None
+            if len(form) == 3:
+                shadowing = form.pop(1)
+                if shadowing not in REGISTRY["shadowing"]:
+                    raise ModelError(f"forms '{text}': unknown shadowing {shadowing}; valid: "
+                                     f"{', '.join(REGISTRY['shadowing'])}")
+            out.update(form_variants(spec, *parse_forms(":".join(form)), shadowing=shadowing))
         return out
     return form_variants(spec, *parse_forms(text))
 
 
-def form_variants(spec: str, ndfs=NDF_FORMS, fresnels=FRESNEL_FORMS) -> dict[str, str]:
+def form_variants(spec: str, ndfs=NDF_FORMS, fresnels=FRESNEL_FORMS, shadowing: str | None = None) -> dict[str, str]:
     """{'ndf:fresnel': model spec}: ``spec`` with every reflection lobe given that NDF and Fresnel
-    (empty ``ndfs`` / ``fresnels``: the lobe's own), the candidates exactly as asked.  ModelError
-    when a candidate cannot be built (a shadowing not defined for that NDF: the message says which)."""
+    (empty ``ndfs`` / ``fresnels``: the lobe's own), the candidates exactly as asked; with
+    ``shadowing``, every lobe's shadowing replaced too and the keys 'ndf:shadowing:fresnel'.
+    ModelError when a candidate cannot be built (a shadowing not defined for that NDF: the message
+    says which)."""
     lobes = Model(spec).spec.split("+")
     own = [parse_lobe(t).spec().split(":") for t in lobes if parse_lobe(t).role == "reflection"]
     if not own:
@@ -84,18 +99,41 @@ def form_variants(spec: str, ndfs=NDF_FORMS, fresnels=FRESNEL_FORMS) -> dict[str
             parts, words = [], set()
             for text in lobes:
                 if parse_lobe(text).role == "reflection":
-                    _, shadowing, _ = parse_lobe(text).spec().split(":")
-                    parts.append(f"{ndf}:{shadowing}:{fresnel}")
-                    words.add(shadowing)
+                    _, own_shadowing, _ = parse_lobe(text).spec().split(":")
+                    parts.append(f"{ndf}:{shadowing or own_shadowing}:{fresnel}")
+                    words.add(shadowing or own_shadowing)
                 else:
                     parts.append(text)
+            key = f"{ndf}:{fresnel}" if shadowing is None else f"{ndf}:{shadowing}:{fresnel}"
             try:
-                out[f"{ndf}:{fresnel}"] = Model("+".join(parts)).spec
+                out[key] = Model("+".join(parts)).spec
             except ModelError:
-                raise ModelError(f"form {ndf}:{fresnel} of '{spec}': {ndf} has no {' or '.join(sorted(words))} "
+                raise ModelError(f"form {key} of '{spec}': {ndf} has no {' or '.join(sorted(words))} "
                                  f"shadowing; leave {ndf} out of --forms or give the model another shadowing "
                                  f"(e.g. :vcavity)") from None
     return out
+
+
+SCREEN = 0.05
+"""A form whose penalised error on the preview cells exceeds a material's least by more than this
+(relative) is not fitted on that material's full table: the full-table stage changes an error
+converged on the preview by far less (its iterations are capped, `FitOptions.preview_final_iter`)."""
+
+
+def screen(estimates: dict, specs: dict, n: int) -> dict:
+    """{form: (n,) bool}: the forms each material is fitted in on its full table, from their
+    errors on the preview cells (``estimates``: {form: (n,)}) penalised as `choose_form`; a material
+    with no finite estimate keeps every form."""
+    keep = {k: np.ones(n, dtype=bool) for k in estimates}
+    for i in range(n):
+        errs = {k: float(e[i]) for k, e in estimates.items() if np.isfinite(e[i])}
+        if not errs:
+            continue
+        _, pen = choose_form(errs, specs)
+        best = min(pen.values())
+        for k in estimates:
+            keep[k][i] = k in pen and pen[k] <= best * (1 + SCREEN)
+    return keep
 
 
 def choose_form(errors: dict, specs: dict) -> tuple[str, dict]:
@@ -164,6 +202,23 @@ def _abc_from_gtr(p: dict, lobe: str, model: Model) -> None:
         p.update({f"{lobe}.F0_{c}": f0 for c in _f0_channels(model.names, lobe)})
 
 
+def _schlick_from_eta(p: dict, lobe: str, model: Model) -> None:
+    eta = p.pop(f"{lobe}.eta", None)
+    if eta is not None:
+        p.update({f"{lobe}.F0_{c}": f0_of_eta(eta) for c in _f0_channels(model.names, lobe)})
+
+
+def _beckmann_from_abc(p: dict, lobe: str, model: Model) -> None:
+    b, c = p.pop(f"{lobe}.B"), p.pop(f"{lobe}.C")
+    p[f"{lobe}.alpha"] = float(np.sqrt(2.0 / (b * c)))
+
+
+def same_parameters(source_results, model: Model) -> np.ndarray:
+    """A start from fits whose parameters are this model's (another shadowing of the same NDF and
+    Fresnel): copied."""
+    return _convert(source_results, model, lambda p, lobe, m: None)
+
+
 def warm_start(source_results, model: Model) -> np.ndarray:
     """GTR from GGX fits with the same Fresnel: the shared parameters copied, gamma = 2 (where GTR
     is GGX)."""
@@ -185,6 +240,19 @@ def abc_from_gtr(source_results, model: Model) -> np.ndarray:
     return _convert(source_results, model, _abc_from_gtr)
 
 
+def schlick_from_dielectric(source_results, model: Model) -> np.ndarray:
+    """A Schlick form from the same NDF with a dielectric Fresnel: eta's F(0) as every channel's F0
+    (the same F at normal incidence; each channel's F0 then free); the rest copied."""
+    return _convert(source_results, model, _schlick_from_eta)
+
+
+def beckmann_from_abc(source_results, model: Model) -> np.ndarray:
+    """Beckmann from ABC fits: as C grows (1 + B (1 - cos th))^-C tends to exp(-B C (1 - cos th)),
+    and near the peak B C (1 - cos th) ~ B C th^2 / 2 against Beckmann's tan^2 th / alpha^2 ~
+    th^2 / alpha^2, so alpha = sqrt(2 / (B C)); the Fresnel kept."""
+    return _convert(source_results, model, _beckmann_from_abc)
+
+
 STARTS: tuple[tuple[str, str, Callable], ...] = (
     # (form, the form whose fits it starts from ('*': the same word), conversion); the first whose
     # source was fitted, every fit a success, gives the start
@@ -192,11 +260,18 @@ STARTS: tuple[tuple[str, str, Callable], ...] = (
     ("abc:schlick", "gtr:dielectric", abc_from_gtr),
     ("abc:*", "gtr:*", abc_from_gtr),
     ("*:dielectric", "*:schlick", dielectric_from_schlick),
+    ("*:schlick", "*:dielectric", schlick_from_dielectric),
+    ("beckmann:*", "abc:*", beckmann_from_abc),
 )
 
 
 def _sources(key: str) -> list[tuple[str, Callable]]:
-    """The forms ``key`` could start from, in STARTS' order, with their conversions."""
+    """The forms ``key`` could start from, in STARTS' order, with their conversions; a form with its
+    own shadowing (``ndf:shadowing:fresnel``) starts first from the same NDF and Fresnel with the
+    model's shadowing (the same parameters, copied)."""
+    if key.count(":") == 2:
+        ndf, _, fresnel = key.split(":")
+        return [(f"{ndf}:{fresnel}", same_parameters)] + _sources(f"{ndf}:{fresnel}")
     ndf, fresnel = key.split(":")
     out = []
     for target, source, how in STARTS:
@@ -219,12 +294,17 @@ def start_source(key: str, fitted: dict) -> tuple[str, Callable] | None:
 
 
 def fit_order(keys) -> list[str]:
-    """``keys`` with every form after the forms among them it could start from."""
+    """``keys`` with every form after the forms among them it could start from.  Where forms could
+    start from each other (a Schlick and a dielectric form of one NDF), the one that can start from
+    a form already placed goes first, else the one waiting on the fewest, else the first in ``keys``."""
     todo, order = list(keys), []
     while todo:
-        ready = [k for k in todo if not any(s in todo for s, _ in _sources(k))] or todo[:1]
-        order.append(ready[0])
-        todo.remove(ready[0])
+        def rank(k: str) -> tuple:
+            sources = [s for s, _ in _sources(k)]
+            pending = sum(s in todo for s in sources)
+            return (pending > 0, not any(s in order for s in sources), pending, todo.index(k))
+        order.append(min(todo, key=rank))
+        todo.remove(order[-1])
     return order
 
 
@@ -273,14 +353,21 @@ class FormFitter:
 
     def _choose(self, upload: Callable, on_result, log) -> list[tuple[FitResult, dict]]:
         """``upload(fitter)``: (names, targets, data) of the batch on that fitter's engine, made once
-        for the forms whose engines can read the same buffers (`same_cells`)."""
+        for the forms whose engines can read the same buffers (`same_cells`).
+
+        Every form is taken to its full-table stage first (`Fitter.begin`: its global search or a
+        warm start from another form, then the preview cells); a form whose penalised error there
+        is more than SCREEN above a material's best is not fitted on that material's full table
+        (`screen`).  Without a preview set (scattered samples) every form is fitted in full."""
         n = -1
-        fitted: dict[str, list[FitResult]] = {}
+        sources: dict[str, list] = {}
+        begun: dict[str, Begun] = {}
+        full: dict[str, list] = {}
         uploaded: dict[str, tuple] = {}
         for key in fit_order(self.forms):
             f = self.fitters[key]
-            src = start_source(key, fitted)
-            start = None if src is None else src[1](fitted[src[0]], f.model)
+            src = start_source(key, sources)
+            start = None if src is None else src[1](sources[src[0]], f.model)
             same = next((k for k in uploaded if same_cells(self.fitters[k], f)), None)
             names, targets, data = uploaded[key] = uploaded[same] if same is not None else upload(f)
             n = len(names)
@@ -288,22 +375,51 @@ class FormFitter:
                 return []
             assess, f.assess_results = f.assess_results, False
             try:
-                fitted[key] = f.run(names, targets, data, time.perf_counter(), log=log, start_values=start)
+                b = f.begin(names, targets, data, time.perf_counter(), log=log, start_values=start)
+                if b.previewed is None:
+                    full[key] = f.complete(b, log=log)
+                    sources[key] = full[key]
+                else:
+                    begun[key] = b
+                    sources[key] = b.starts()
             finally:
                 f.assess_results = assess
-            log(f"form {key}: fitted {n} material{'s' * (n != 1)}"
+            log(f"form {key}: fitted {count(n, 'material')}{'' if key in full else ' on the preview cells'}"
                 + (f" from the {src[0]} fits (no global search)" if src else ""))
+        estimates = {k: e for k, b in begun.items() if (e := b.estimate()) is not None}
+        kept = screen(estimates, self.forms, n)
+        fitted: dict[str, list] = {k: list(v) for k, v in full.items()}
+        for key, b in begun.items():
+            rows = np.flatnonzero(kept[key])
+            f = self.fitters[key]
+            assess, f.assess_results = f.assess_results, False
+            try:
+                done = f.complete(b, log=log, mats=rows)
+            finally:
+                f.assess_results = assess
+            fitted[key] = [None] * n
+            for row, r in zip(rows, done):
+                fitted[key][int(row)] = r
+            log(f"form {key}: fitted {count(rows.size, 'material')} on the full table"
+                + (f" ({n - rows.size} left out: more than {SCREEN:.0%} worse on the preview cells)"
+                   if rows.size < n else ""))
         chosen, records = [], []
         for i in range(n):
             errors = {k: fitted[k][i].errors["rmse_log"] for k in self.forms
-                      if fitted[k][i].success and np.isfinite(fitted[k][i].errors["rmse_log"])}
+                      if fitted[k][i] is not None and fitted[k][i].success
+                      and np.isfinite(fitted[k][i].errors["rmse_log"])}
             record: dict
             if errors:
                 key, pen = choose_form(errors, self.forms)
                 record = {"form": key, "form_errors": {k: {"rmse_log": errors[k], "penalised": pen[k]}
                                                        for k in errors}}
+                for k in self.forms:
+                    if k not in errors and k in estimates and np.isfinite(estimates[k][i]):
+                        _, est = choose_form({k: float(estimates[k][i])}, self.forms)
+                        record["form_errors"][k] = {"rmse_preview": float(estimates[k][i]), "penalised": est[k]}
             else:
-                key, record = next(iter(self.forms)), {"form": None, "form_errors": {}}
+                key = next(k for k in self.forms if fitted[k][i] is not None)
+                record = {"form": None, "form_errors": {}}
             chosen.append(key)
             records.append(record)
         judged = self._assess(chosen, fitted, uploaded)
@@ -311,8 +427,11 @@ class FormFitter:
         for i, key in enumerate(chosen):
             # the choice took every form's fit: its time and evaluations are the material's
             r = fitted[key][i]
-            out.append((dataclasses.replace(r, seconds=sum(fitted[k][i].seconds for k in self.forms) + judged[i][2],
-                                            nfev=sum(fitted[k][i].nfev for k in self.forms),
+            seconds = sum(fitted[k][i].seconds if fitted[k][i] is not None else float(begun[k].batch.share[i])
+                          for k in self.forms)
+            nfev = sum(fitted[k][i].nfev if fitted[k][i] is not None else int(begun[k].batch.global_nfev[i])
+                       for k in self.forms)
+            out.append((dataclasses.replace(r, seconds=seconds + judged[i][2], nfev=nfev,
                                             stages={**r.stages, **judged[i][1]}, **judged[i][0]), records[i]))
             if on_result is not None:
                 on_result(*out[-1])

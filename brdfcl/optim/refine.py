@@ -72,34 +72,45 @@ def dead_lobes(model: Model, x: np.ndarray) -> list[tuple[list[int], list[int]]]
     return dead
 
 
-def _finished(objective: Objective, st: LMState, rows: np.ndarray) -> StageResult:
-    return StageResult(objective.spaces.from_y(st.x[rows]), st.loss[rows].copy(), rows, st.nfev.copy(),
-                       [st.status[i] for i in rows], np.isfinite(st.loss[rows]), "Levenberg-Marquardt")
+def _finished(objective: Objective, st: LMState, rows: np.ndarray, mats: np.ndarray, n: int) -> StageResult:
+    """The run's ``rows`` as a stage result of the batch's ``n`` materials (row i fits ``mats[i]``)."""
+    return StageResult(objective.spaces.from_y(st.x[rows]), st.loss[rows].copy(), mats[rows],
+                       _per_material(st.nfev, mats, n, 0), [st.status[i] for i in rows],
+                       np.isfinite(st.loss[rows]), "Levenberg-Marquardt")
+
+
+def _per_material(values: np.ndarray, mats: np.ndarray, n: int, fill) -> np.ndarray:
+    out = np.full(n, fill, dtype=values.dtype)
+    out[mats] = values
+    return out
 
 
 def refine(objective: Objective, target: Target, x0: np.ndarray, *, options: FitOptions,
-           log: Callable[[str], None] = _quiet) -> Iterator[RefineStep]:
-    """Levenberg-Marquardt from ``x0`` (n, k), row i for material i of ``target``: yields the
-    materials as they finish (``nfev``: this stage's evaluations per material, probes included)."""
+           log: Callable[[str], None] = _quiet, mats: np.ndarray | None = None) -> Iterator[RefineStep]:
+    """Levenberg-Marquardt from ``x0`` (m, k), row i for material ``mats[i]`` of ``target`` (default:
+    material i, every one): yields the materials as they finish (``nfev``: this stage's evaluations
+    per material, probes included; materials not in ``mats`` have none and no loss)."""
     sp = objective.spaces
-    n = x0.shape[0]
+    n = len(target.scale)
+    mats = np.arange(x0.shape[0]) if mats is None else np.asarray(mats, dtype=int)
     log(f"local: Levenberg-Marquardt on {target.cells.index.size} cells per material")
-    run = LMRun(_JTJ(objective, target, np.arange(n)), sp.to_y(x0), *sp.y_bounds, options.lm,
-                noise_floor(objective, target, np.arange(n)))
+    run = LMRun(_JTJ(objective, target, mats), sp.to_y(x0), *sp.y_bounds, options.lm,
+                noise_floor(objective, target, mats))
     st = run.state
-    start = st.loss.copy()
-    held: list[int] = []            # materials finished with a dead lobe, revived at the end
+    start = _per_material(st.loss, mats, n, np.nan)
+    held: list[int] = []            # rows finished with a dead lobe, revived at the end
     for step in run.steps():
-        done = _finished(objective, st, step.finished)
+        done = _finished(objective, st, step.finished, mats, n)
         dead = np.array([bool(options.probe_dead_lobes and dead_lobes(objective.model, x)) for x in done.x],
                         dtype=bool)
-        held.extend(done.mat[dead].tolist())
-        running = np.flatnonzero(step.running) if step.evaluated else np.zeros(0, dtype=int)
-        yield RefineStep(done.rows(np.flatnonzero(~dead)), running, st.loss, start)
+        held.extend(step.finished[dead].tolist())
+        running = mats[np.flatnonzero(step.running)] if step.evaluated else np.zeros(0, dtype=int)
+        yield RefineStep(done.rows(np.flatnonzero(~dead)), running, _per_material(st.loss, mats, n, np.nan), start)
     if held:
-        revived = revive(objective, target, _finished(objective, st, np.array(held)), options=options, log=log)
-        revived.nfev += st.nfev
-        yield RefineStep(revived, np.zeros(0, dtype=int), st.loss, start)
+        revived = revive(objective, target, _finished(objective, st, np.array(held), mats, n), options=options,
+                         log=log)
+        revived.nfev += _per_material(st.nfev, mats, n, 0)
+        yield RefineStep(revived, np.zeros(0, dtype=int), _per_material(st.loss, mats, n, np.nan), start)
 
 
 def revive(objective: Objective, target: Target, held: StageResult, *, options: FitOptions,
