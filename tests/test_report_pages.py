@@ -37,6 +37,25 @@ def test_pages_hold_what_a_user_reads(run):
                      f"{n}-slices.svg", f"{n}-lobes.svg", "median relative difference", "ct.alpha"):
             assert what in page, (n, what)
     assert "diffraction.rho" in index and "rmse_log" in index        # grouped parameters, metrics
+    # the demo's known truth beside each fitted value: same names, 0 for a lobe the truth lacks
+    fabric = (run / "report" / "synth-fabric.html").read_text()
+    assert "<th>true value</th>" in fabric and "true model is <code>diffuse+beckmann:vcavity:none</code>" in fabric
+    metal = (run / "report" / "synth-smooth-metal.html").read_text()
+    row = re.search(r"<tr><td class='l'>ct\.alpha</td>(.*?)</tr>", metal).group(1)
+    assert "data-v='0.02'" in row and "%" in row
+
+
+def test_the_truth_of_a_synthetic_table_is_found_beside_it_or_its_target(demo_db, tmp_path):
+    from brdfcl.model.synth import truth_of
+    t = truth_of(demo_db / "synth-fabric.binary")
+    assert t["model"] == "diffuse+beckmann:vcavity:none" and t["params"]["diffuse.rho_g"] == 0.25
+    (tmp_path / "synth-fabric.binary").symlink_to(demo_db / "synth-fabric.binary")
+    assert truth_of(tmp_path / "synth-fabric.binary")["params"] == t["params"]
+    (tmp_path / "copy").mkdir()
+    shutil.copy(demo_db / "synth-fabric.binary", tmp_path / "copy" / "synth-fabric.binary")
+    assert truth_of(tmp_path / "copy" / "synth-fabric.binary") is None            # a table with no truth
+    (tmp_path / "copy" / "truth.json").write_text("{not json")
+    assert truth_of(tmp_path / "copy" / "synth-fabric.binary") is None
 
 
 def test_images_are_redrawn_only_when_the_fit_changes(run, demo_db):

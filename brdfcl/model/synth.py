@@ -117,6 +117,24 @@ def write_synth(out_dir, materials=None, noise=0.0, missing=0.0, seed=0, log=pri
     return truth
 
 
+def truth_of(path) -> dict | None:
+    """The known truth of a synthetic measurement: its entry ({"model", "params"}) in the
+    ``truth.json`` beside the file (``brdfcl synth`` and the demo write one), looked up by the
+    file's name without its suffix, beside the path as given and, for a link, beside its target;
+    None where there is none (a real measurement) or it cannot be read."""
+    path = Path(path)
+    for folder in dict.fromkeys((path.parent, path.resolve().parent)):
+        try:
+            doc = json.loads((folder / "truth.json").read_text())
+        except (OSError, ValueError):
+            continue
+        entry = doc.get("materials", {}).get(path.stem) if isinstance(doc, dict) else None
+        if isinstance(entry, dict) and isinstance(entry.get("params"), dict) and "model" in entry:
+            return {"model": str(entry["model"]), "params": dict(entry["params"]),
+                    "noise": doc.get("noise"), "file": str(folder / "truth.json")}
+    return None
+
+
 def _fingerprint():
     return hashlib.sha1(repr(sorted(DEMO.items())).encode()).hexdigest()[:16]
 

@@ -18,7 +18,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from brdfcl._words import count
-from brdfcl.model.compose import Model
+from brdfcl.model.compose import Model, ModelError
+from brdfcl.optim.forms import SCREEN
 from brdfcl.optim.selection import PENALTY
 from brdfcl.report.files import writing
 from brdfcl.report.view.images import draw_images
@@ -74,6 +75,7 @@ class Entry:
     form: str | None = None               # the reflection lobe's form, where chosen (brdfcl.optim.forms)
     form_errors: dict | None = None       # {form: {"rmse_log", "penalised"}} of every candidate
     tabulated: bool = True                # a table (spheres and slices from it), not scattered samples
+    truth: dict | None = None             # a synthetic material's known truth (brdfcl.model.synth.truth_of)
 
     @classmethod
     def from_document(cls, doc, table=None, **kw):
@@ -177,9 +179,14 @@ def material_page(e, images, rep) -> str:
          + "".join(_num(e.errors.get(m)) for m in error_columns([e])) + "</tr></table>"]
     if e.form_errors:
         h.append(f"<p>reflection lobe form <b>{html.escape(str(e.form))}</b>, the least penalised error "
-                 f"(rmse_log x (1 + {PENALTY:g} x free parameters)) of the candidates:</p><table><tr><th>form</th>"
+                 f"(rmse_log x (1 + {PENALTY:g} x free parameters)) of the candidates; a form more than "
+                 f"{SCREEN:.0%} behind the best on the preview cells (every n-th cell) was not fitted on the "
+                 "full table, its error there is shown in italics:</p><table><tr><th>form</th>"
                  "<th>rmse_log</th><th>penalised</th></tr>"
-                 + "".join(f"<tr><td>{html.escape(k)}</td>{_num(v.get('rmse_log'))}{_num(v.get('penalised'))}</tr>"
+                 + "".join(f"<tr><td>{html.escape(k)}</td>"
+                           + (_num(v.get("rmse_log")) if "rmse_log" in v else
+                              _td(f"<i>{v['rmse_preview']:.4g}</i>", v["rmse_preview"]))
+                           + f"{_num(v.get('penalised'))}</tr>"
                            for k, v in sorted(e.form_errors.items(), key=lambda kv: kv[1].get("penalised", 0)))
                  + "</table>")
     if e.flags:
@@ -209,16 +216,48 @@ def material_page(e, images, rep) -> str:
     return "\n".join(h)
 
 
+def true_values(model: Model, truth: dict) -> dict:
+    """{fitted parameter: true value} of a synthetic material: the truth's value of a parameter of
+    the same name, 0 for the amplitude of a lobe the truth's model lacks; the other parameters
+    (a form the truth does not have) are left out."""
+    params = truth.get("params", {})
+    try:
+        lobes = {lb.prefix for lb in Model(truth["model"]).lobes}
+    except ModelError:              # a model this brdfcl does not know: the names alone
+        lobes = {k.split(".")[0] for k in params}
+    out = {}
+    for s in model.slots:
+        if s.name in params and isinstance(params[s.name], (int, float)):
+            out[s.name] = float(params[s.name])
+        elif s.amplitude and s.lobe not in lobes:
+            out[s.name] = 0.0
+    return out
+
+
 def _param_table(e):
     se = (e.uncertainty or {}).get("std_error") or {}
     model = e.fitted_model()
-    rows = ["<table><tr><th class='l'>parameter</th><th>value</th><th>standard error</th>"
-            "<th class='l'>unit</th><th>bounds</th></tr>"]
+    truth = true_values(model, e.truth) if e.truth else None
+    head = "<th>true value</th><th>fitted / true - 1</th>" if truth is not None else ""
+    rows = []
+    if truth is not None:
+        rows.append(f"<p>A synthetic material: its true model is <code>{html.escape(e.truth['model'])}</code> "
+                    f"({html.escape(Path(e.truth['file']).name)} beside the table"
+                    + (f", noise {e.truth['noise']:g}" if isinstance(e.truth.get("noise"), (int, float)) else "")
+                    + "). A lobe the truth lacks is 0 there; a parameter of a form the truth does not have "
+                    "has no true value.</p>")
+    rows.append("<table><tr><th class='l'>parameter</th><th>value</th><th>standard error</th>"
+                f"{head}<th class='l'>unit</th><th>bounds</th></tr>")
     for s in model.slots:
         v = e.params.get(s.name)
         err = se.get(s.name)
+        cells = ""
+        if truth is not None:
+            t = truth.get(s.name)
+            rel = (v / t - 1) if t not in (None, 0) and v is not None else None
+            cells = _num(t) + ("<td></td>" if rel is None else f"<td>{rel:+.2%}</td>")
         rows.append(f"<tr><td class='l'>{html.escape(s.name)}</td>{_num(v)}"
-                    f"<td>{'' if err is None else f'{err:.3g}'}</td>"
+                    f"<td>{'' if err is None else f'{err:.3g}'}</td>{cells}"
                     f"<td class='l'>{html.escape(s.param.unit or '')}</td>"
                     f"<td>{s.param.lo:.3g} .. {s.param.hi:.3g}</td></tr>")
     rows.append("</table>")

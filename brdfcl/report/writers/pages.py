@@ -15,6 +15,7 @@ from brdfcl.data.errors import DataError
 from brdfcl.data.geometry import table_values
 from brdfcl.data.merl import MerlError
 from brdfcl.data.readers import read_measurement
+from brdfcl.model.synth import truth_of
 from brdfcl.report.output import read_results
 from brdfcl.report.writers.analysis_figures import figure_paths
 from brdfcl.report.writers.base import FIT, Item, Job, Writer
@@ -55,12 +56,12 @@ class ReportPages(Writer):
         # local: the pages draw with matplotlib, which a run without them never loads
         from brdfcl.report.view.pages import Entry, write_report
         if job.kind == FIT:
-            entries = [Entry.from_document(d, path, tabulated=_tabulated(path)) for d in read_results(job.out)
-                       if (path := job.tables.get(d["material"])) is not None]
+            entries = [Entry.from_document(d, path, tabulated=_tabulated(path), truth=truth_of(path))
+                       for d in read_results(job.out) if (path := job.tables.get(d["material"])) is not None]
             title = f"brdfcl fits in {job.out}"
         else:
             entries = [Entry.from_result(i.analysis.final, i.table, verdict=i.analysis.verdict,
-                                         tabulated=_tabulated(i.table),
+                                         tabulated=_tabulated(i.table), truth=truth_of(i.table),
                                          figures=figure_paths(job.out, i.analysis) if job.figures else [])
                        for i in items if i.analysis is not None]
             if not entries:
