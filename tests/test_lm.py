@@ -423,3 +423,22 @@ def test_statuses_are_codes_with_messages():
     assert not Status.ITERATION_LIMIT.converged and Status.ITERATION_LIMIT == 0
     assert message(Status.FTOL, "after reviving a lobe") == "converged (ftol); after reviving a lobe"
     assert Status.NOISE_FLOOR.text == "converged (at the noise floor)"
+
+
+def test_a_row_above_its_ceiling_stops_after_behind_after_iterations():
+    """Rosenbrock from far away takes more than BEHIND_AFTER iterations: with a ceiling below
+    its loss then it stops there (Status.BEHIND), with an infinite one it converges; a row
+    already below its ceiling is not stopped."""
+    from brdfcl.optim.lm import BEHIND_AFTER
+    x0 = np.array([[-1.9, 2.5], [-1.9, 2.5]])
+    lo, hi = np.full(2, -5.0), np.full(2, 5.0)
+    free = LMRun(Batch([rosenbrock, rosenbrock]), x0, lo, hi, LMOptions(max_iter=200))
+    for _ in free.steps():
+        pass
+    assert free.state.iters[0] > BEHIND_AFTER and free.state.loss[0] < 1e-10
+    run = LMRun(Batch([rosenbrock, rosenbrock]), x0, lo, hi, LMOptions(max_iter=200),
+                ceiling=np.array([1e-12, np.inf]))
+    for _ in run.steps():
+        pass
+    assert run.state.status[0] == Status.BEHIND and run.state.iters[0] == BEHIND_AFTER
+    assert run.state.status[1].converged and run.state.loss[1] < 1e-10

@@ -178,9 +178,12 @@ class Fitter:
 
     def begin(self, names: list[str], t: Targets, full_data: np.ndarray, t0: float,
               on_result: Callable[[FitResult], None] | None = None,
-              log: Callable[[str], None] = _quiet, start_values: np.ndarray | None = None) -> Begun:
+              log: Callable[[str], None] = _quiet, start_values: np.ndarray | None = None,
+              ceiling: np.ndarray | None = None) -> Begun:
         """`run` up to the full-table stage: the global search (or the warm start) and, with a
-        preview set, Levenberg-Marquardt on it to convergence; `complete` finishes it."""
+        preview set, Levenberg-Marquardt on it to convergence; `complete` finishes it.
+        ``ceiling`` (n,): each material's rmse in the fit metric (penalties included) above which
+        its preview run stops early (brdfcl.optim.lm.BEHIND_AFTER; Status.BEHIND)."""
         o, objective = self.opts, self.objective
         batch = _Batch(self, names, full_data, t.full, on_result, t0)
         ranking = t.full if t.preview is None else t.preview    # a few starts need no full table
@@ -195,7 +198,8 @@ class Fitter:
         batch.started(found, loss0)
         x0, local, previewed = start.x, o, None
         if t.preview is not None:       # multi-resolution: converge on every n-th cell first
-            previewed = _converged(refine(objective, t.preview, x0, options=o, log=log), len(names))
+            cap = None if ceiling is None else np.asarray(ceiling, dtype=np.float64) ** 2 * t.full.scale
+            previewed = _converged(refine(objective, t.preview, x0, options=o, log=log, ceiling=cap), len(names))
             batch.previewed(previewed)
             x0 = previewed.x
             local = replace(o, probe_dead_lobes=False, lm=replace(o.lm, max_iter=o.preview_final_iter))

@@ -29,7 +29,7 @@ from brdfcl._words import count
 from brdfcl.model.compose import Model, ModelError, parse_lobe
 from brdfcl.optim.assessment import assess
 from brdfcl.optim.fit import Begun, FitOptions, FitResult, Fitter, same_cells
-from brdfcl.optim.selection import select
+from brdfcl.optim.selection import penalised, select
 
 NDF_FORMS = ("ggx", "gtr", "beckmann")
 FRESNEL_FORMS = ("schlick", "dielectric")
@@ -375,7 +375,8 @@ class FormFitter:
                 return []
             assess, f.assess_results = f.assess_results, False
             try:
-                b = f.begin(names, targets, data, time.perf_counter(), log=log, start_values=start)
+                b = f.begin(names, targets, data, time.perf_counter(), log=log, start_values=start,
+                            ceiling=self._ceiling(key, begun, n))
                 if b.previewed is None:
                     full[key] = f.complete(b, log=log)
                     sources[key] = full[key]
@@ -436,6 +437,17 @@ class FormFitter:
             if on_result is not None:
                 on_result(*out[-1])
         return out
+
+    def _ceiling(self, key: str, begun: dict, n: int) -> np.ndarray | None:
+        """(n,) the rmse on the preview cells above which form ``key`` is screened out for sure,
+        from the forms already on them (`screen`'s rule); None before any."""
+        best = None
+        for k, b in begun.items():
+            e = b.estimate()
+            if e is not None:
+                pen = e * penalised(1.0, self.forms[k])
+                best = pen if best is None else np.fmin(best, pen)
+        return None if best is None else best * (1 + SCREEN) / penalised(1.0, self.forms[key])
 
     def _assess(self, chosen: list[str], fitted: dict, uploaded: dict) -> list[tuple[dict, dict, float]]:
         """({uncertainty, albedo, flags}, {"uncertainty": seconds}, the material's share of those

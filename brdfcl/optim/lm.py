@@ -22,6 +22,11 @@ OnDone = Callable[[np.ndarray, np.ndarray, np.ndarray, list], None]
 OnIter = Callable[[int, np.ndarray, np.ndarray, np.ndarray], None]
 
 
+BEHIND_AFTER = 10
+"""Iterations after which a row above its ``ceiling`` (`LMRun`) stops: a candidate whose loss is
+still far above another's by then is not going to win."""
+
+
 @dataclass
 class LMOptions:
     """Stopping rules and damping of `levenberg_marquardt`."""
@@ -120,11 +125,15 @@ class LMRun:
     (write their results) between launches, outside the solver."""
 
     def __init__(self, jtj_x: JTJ, x0: np.ndarray, lo: np.ndarray, hi: np.ndarray,
-                 opts: LMOptions | None = None, floor: np.ndarray | None = None):
+                 opts: LMOptions | None = None, floor: np.ndarray | None = None,
+                 ceiling: np.ndarray | None = None):
         """``floor`` (n,): a loss at or below which a row has converged whatever its steps still
-        change (the rounding noise of an exact fit: relative decreases there never settle)."""
+        change (the rounding noise of an exact fit: relative decreases there never settle);
+        ``ceiling`` (n,): a loss above which a row stops after BEHIND_AFTER iterations
+        (Status.BEHIND: a candidate another one beats)."""
         self.jtj_x, self.lo, self.hi = jtj_x, lo, hi
         self.floor = np.full(x0.shape[0], -np.inf) if floor is None else np.asarray(floor, dtype=np.float64)
+        self.ceiling = None if ceiling is None else np.asarray(ceiling, dtype=np.float64)
         self.opts = opts or LMOptions()
         n = x0.shape[0]
         x = np.clip(x0, lo, hi).astype(np.float64)
@@ -152,9 +161,11 @@ class LMRun:
             # would gain < ftol
             pred = newton_decrements(H[rows], g[rows], x[rows], lo, hi)
             floored = L[rows] <= self.floor[rows]
-            flat = floored | (pred <= opts.ftol * np.maximum(L[rows], 1e-300))
-            for i, at_floor in zip(rows[flat], floored[flat]):
-                status[i] = Status.NOISE_FLOOR if at_floor else Status.PREDICTED_FTOL
+            behind = (np.zeros(rows.size, dtype=bool) if self.ceiling is None or it < BEHIND_AFTER
+                      else L[rows] > self.ceiling[rows])
+            flat = floored | behind | (pred <= opts.ftol * np.maximum(L[rows], 1e-300))
+            for i, at_floor, left in zip(rows[flat], floored[flat], behind[flat]):
+                status[i] = Status.NOISE_FLOOR if at_floor else Status.BEHIND if left else Status.PREDICTED_FTOL
                 running[i] = False
             if flat.any():
                 yield LMStep(it, st, running, rows[flat], False)

@@ -20,6 +20,7 @@ from brdfcl.optim.lm import LMRun, LMState, levenberg_marquardt
 from brdfcl.optim.objective import Objective, Target
 from brdfcl.optim.options import FitOptions
 from brdfcl.optim.result import StageResult
+from brdfcl.optim.status import Status
 
 NOISE_FLOOR = 1e-5       # rmse_log below which a float32 fit is exact (its changes are rounding)
 
@@ -86,22 +87,25 @@ def _per_material(values: np.ndarray, mats: np.ndarray, n: int, fill) -> np.ndar
 
 
 def refine(objective: Objective, target: Target, x0: np.ndarray, *, options: FitOptions,
-           log: Callable[[str], None] = _quiet, mats: np.ndarray | None = None) -> Iterator[RefineStep]:
+           log: Callable[[str], None] = _quiet, mats: np.ndarray | None = None,
+           ceiling: np.ndarray | None = None) -> Iterator[RefineStep]:
     """Levenberg-Marquardt from ``x0`` (m, k), row i for material ``mats[i]`` of ``target`` (default:
     material i, every one): yields the materials as they finish (``nfev``: this stage's evaluations
-    per material, probes included; materials not in ``mats`` have none and no loss)."""
+    per material, probes included; materials not in ``mats`` have none and no loss).  ``ceiling``
+    (per row): see `LMRun`; a row stopped there is not revived."""
     sp = objective.spaces
     n = len(target.scale)
     mats = np.arange(x0.shape[0]) if mats is None else np.asarray(mats, dtype=int)
     log(f"local: Levenberg-Marquardt on {target.cells.index.size} cells per material")
     run = LMRun(_JTJ(objective, target, mats), sp.to_y(x0), *sp.y_bounds, options.lm,
-                noise_floor(objective, target, mats))
+                noise_floor(objective, target, mats), ceiling)
     st = run.state
     start = _per_material(st.loss, mats, n, np.nan)
     held: list[int] = []            # rows finished with a dead lobe, revived at the end
     for step in run.steps():
         done = _finished(objective, st, step.finished, mats, n)
-        dead = np.array([bool(options.probe_dead_lobes and dead_lobes(objective.model, x)) for x in done.x],
+        dead = np.array([bool(options.probe_dead_lobes and st.status[r] != Status.BEHIND
+                              and dead_lobes(objective.model, x)) for r, x in zip(step.finished, done.x)],
                         dtype=bool)
         held.extend(step.finished[dead].tolist())
         running = mats[np.flatnonzero(step.running)] if step.evaluated else np.zeros(0, dtype=int)

@@ -11,6 +11,7 @@ from enum import IntEnum
 class Status(IntEnum):
     """The outcome of one row of a stage, and of a material's fit (FitResult.status)."""
 
+    BEHIND = -4              # stopped: still above another candidate's error after BEHIND_AFTER iterations
     FAILED = -3              # the fit's loss or errors are not finite
     RUNNING = -2             # still iterating (inside a stage only)
     START = -1               # a start: the global search's, or given (no refinement yet)
@@ -31,6 +32,7 @@ class Status(IntEnum):
 
 
 MESSAGES = {
+    Status.BEHIND: "stopped: far behind another candidate",
     Status.FAILED: "failed: the error is not finite",
     Status.RUNNING: "running",
     Status.START: "start",
