@@ -4,15 +4,18 @@ The talk fixes the lobes (diffuse, diffraction, Cook-Torrance) but not the form 
 Cook-Torrance lobe: a highlight with a power-law tail wants a heavy-tailed NDF (GTR, ABC), a
 coated dielectric a dielectric Fresnel.  ``form_variants`` rewrites a model with every candidate
 form of its reflection lobes (the shadowing word kept: ``smith`` becomes the chosen NDF's own Smith
-term); ``FormFitter`` fits a batch in each and keeps, per material, the form of least penalised
-error (brdfcl.optim.selection): rmse_log x (1 + 0.02 x free parameters), so a form with more
+term, unless a form names its own); ``FormFitter`` fits a batch in each and keeps, per material,
+the form of least penalised error (brdfcl.optim.selection): rmse_log x (1 + 0.02 x free parameters), so a form with more
 parameters is kept only where it earns them, and one with fewer (one refractive index instead of
 an F0 per channel) wins ties.  A form that can start from another's fits (``STARTS``: GTR at
-gamma = 2 is GGX; ABC near its peak is a GTR) is refined from them, without a global search.
+gamma = 2 is GGX; ABC near its peak is a GTR) is refined from them, without a global search.  On a
+table every form is first fitted on the preview cells only, and one far behind a material's best
+there (``SCREEN``) is not fitted on its full table (`screen`).
 
 ``DEFAULT_FORMS`` is what ``brdfcl fit-all`` chooses among when no model is given: the forms a
 default needs so that no development proxy is fitted worse than by the published SGD and ABC fits
-(bench/bench_forms.py; the comparison is bench/results/forms_published.md).
+(bench/bench_forms.py; the comparison is bench/results/forms_published.md) and the common analytic
+families (GGX and Beckmann metals, Cook-Torrance's V-cavity form) are inside it.
 """
 from __future__ import annotations
 
