@@ -140,12 +140,15 @@ def _assess(objective, target, data, values, rows, at_bound):
         for j, u in zip(sel, got):
             unc[j] = u
     safe = np.where(finite[:, None], values, model.defaults())
+    # each lobe's own albedo, for the fits whose amplitudes correlate enough to trade places only
+    traded = [j for j in range(len(rows)) if finite[j] and unc[j] is not None and trades(model, unc[j])]
     lobes = [lb.prefix for lb in model.lobes]
     amp = np.array([s.amplitude for s in model.slots])
-    own = [np.where(amp & (np.array([s.lobe for s in model.slots]) != p), 0.0, safe) for p in lobes]
-    every = directional_albedo(model, np.concatenate([safe] + own), engine=objective.engine)
+    own = [np.where(amp & (np.array([s.lobe for s in model.slots]) != p), 0.0, safe[traded]) for p in lobes]
+    every = directional_albedo(model, np.concatenate([safe] + (own if traded else [])), engine=objective.engine)
     alb = every[:len(rows)]
-    per_lobe = every[len(rows):].reshape(len(lobes), len(rows), *alb.shape[1:])
+    per_lobe = every[len(rows):].reshape(len(lobes) if traded else 0, len(traded), *alb.shape[1:])
+    lobe_albedo = {j: {p: per_lobe[k, c] for k, p in enumerate(lobes)} for c, j in enumerate(traded)}
     out = []
     for j in range(len(rows)):
         if not finite[j]:
@@ -154,5 +157,5 @@ def _assess(objective, target, data, values, rows, at_bound):
             continue
         out.append({"uncertainty": unc[j].as_json(), "albedo": albedo_json(alb[j]),
                     "flags": flags(model, values[j], at_bound[j], unc[j], alb[j],
-                                   lobe_albedo={p: per_lobe[k, j] for k, p in enumerate(lobes)})})
+                                   lobe_albedo=lobe_albedo.get(j))})
     return out
