@@ -24,6 +24,7 @@ import difflib
 import re
 import time
 from collections.abc import Callable, Sequence
+from contextlib import contextmanager
 from dataclasses import replace
 
 import numpy as np
@@ -326,6 +327,17 @@ def resolve(forms: str | None, opts: FitOptions, model_given: bool = False) -> s
     return forms if asked_for(forms) else None
 
 
+@contextmanager
+def _unassessed(f: Fitter):
+    """``f``'s fits finish without their assessment (only the chosen form's is assessed, by
+    `FormFitter`), its setting kept for that."""
+    keep, f.assess_results = f.assess_results, False
+    try:
+        yield f
+    finally:
+        f.assess_results = keep
+
+
 class FormFitter:
     """Fits a batch in every candidate form (``forms``: {key: model spec}, `form_keys`) and keeps
     each material's form of least penalised error; every form fits the same cells, read once.
@@ -376,18 +388,15 @@ class FormFitter:
             n = len(names)
             if not n:
                 return []
-            assess, f.assess_results = f.assess_results, False
-            try:
-                b = f.begin(names, targets, data, time.perf_counter(), log=log, start_values=start,
-                            ceiling=self._ceiling(key, begun, n))
-                if b.previewed is None:
+            b = f.begin(names, targets, data, time.perf_counter(), log=log, start_values=start,
+                        ceiling=self._ceiling(key, begun, n))
+            if b.previewed is None:
+                with _unassessed(f):
                     full[key] = f.complete(b, log=log)
-                    sources[key] = full[key]
-                else:
-                    begun[key] = b
-                    sources[key] = b.starts()
-            finally:
-                f.assess_results = assess
+                sources[key] = full[key]
+            else:
+                begun[key] = b
+                sources[key] = b.starts()
             log(f"form {key}: fitted {count(n, 'material')}{'' if key in full else ' on the preview cells'}"
                 + (f" from the {src[0]} fits (no global search)" if src else ""))
         estimates = {k: e for k, b in begun.items() if (e := b.estimate()) is not None}
@@ -396,11 +405,8 @@ class FormFitter:
         for key, b in begun.items():
             rows = np.flatnonzero(kept[key])
             f = self.fitters[key]
-            assess, f.assess_results = f.assess_results, False
-            try:
+            with _unassessed(f):
                 done = f.complete(b, log=log, mats=rows)
-            finally:
-                f.assess_results = assess
             fitted[key] = [None] * n
             for row, r in zip(rows, done):
                 fitted[key][int(row)] = r
