@@ -1,7 +1,10 @@
 """Shared fixtures.  MERL-proxy data comes from ../shared (or BRDFCL_SHARED); tests that need it
 skip with a reason when it is absent.  Proxy tables are generated once into BRDFCL_PROXY_CACHE
 (default ~/.cache/brdfcl/proxy), never into the repository."""
+import atexit
+import fcntl
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -9,10 +12,13 @@ from pathlib import Path
 
 import pytest
 
-# brdfcl's own cache (vector widths chosen by probing, build markers) lives in a folder of this
-# test session, inherited by the CLI subprocesses: tests neither depend on nor leave state in
-# the user's ~/.cache/brdfcl.
-os.environ.setdefault("BRDFCL_CACHE_DIR", tempfile.mkdtemp(prefix="brdfcl-test-cache-"))
+# brdfcl's own cache (vector widths chosen by probing, generated sources, kept programs) lives in
+# a folder of this test session, inherited by the CLI subprocesses, and goes with the session:
+# tests neither depend on nor leave state in the user's ~/.cache/brdfcl.  A BRDFCL_CACHE_DIR set
+# beforehand is used and kept (.ci/run shares one between its test runs).
+if "BRDFCL_CACHE_DIR" not in os.environ:
+    os.environ["BRDFCL_CACHE_DIR"] = tempfile.mkdtemp(prefix="brdfcl-test-cache-")
+    atexit.register(shutil.rmtree, os.environ["BRDFCL_CACHE_DIR"], ignore_errors=True)
 
 
 @pytest.fixture(scope="session", autouse=True)
@@ -40,11 +46,13 @@ def proxy_files(names):
         if os.environ.get("BRDFCL_REQUIRE_SHARED") == "1":
             pytest.fail(why)
         pytest.skip(why)
-    missing = [n for n in names if not (PROXY_CACHE / f"{n}.binary").exists()]
-    if missing:
-        PROXY_CACHE.mkdir(parents=True, exist_ok=True)
-        subprocess.run([sys.executable, str(tool), str(weights), str(PROXY_CACHE),
-                        "--materials", ",".join(missing)], check=True, capture_output=True)
+    PROXY_CACHE.mkdir(parents=True, exist_ok=True)
+    with open(PROXY_CACHE / ".lock", "w") as lock:     # test processes running side by side (-n)
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        missing = [n for n in names if not (PROXY_CACHE / f"{n}.binary").exists()]
+        if missing:
+            subprocess.run([sys.executable, str(tool), str(weights), str(PROXY_CACHE),
+                            "--materials", ",".join(missing)], check=True, capture_output=True)
     return [PROXY_CACHE / f"{n}.binary" for n in names]
 
 

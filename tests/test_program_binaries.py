@@ -3,6 +3,7 @@ self-test is loaded from its binary by the next process, passes the same self-te
 that does not load is removed and the program built from source again."""
 import pytest
 
+from brdfcl.device import engine as engine_module
 from brdfcl.device import selftest
 from brdfcl.device.binaries import binary_path, load_binary
 from brdfcl.device.engine import Engine
@@ -11,7 +12,11 @@ SPEC = "diffuse+ggx:smith:schlick"
 
 
 @pytest.fixture()
-def engine():
+def engine(tmp_path, monkeypatch):
+    """A program built in this test, its binary kept in a cache of its own (in a shared cache, other
+    programs built beside it may push it out of the newest KEEP_BINARIES)."""
+    monkeypatch.setenv("BRDFCL_CACHE_DIR", str(tmp_path))
+    monkeypatch.setattr(engine_module, "_PROGRAMS", {})
     try:
         return Engine(SPEC)
     except Exception as e:          # noqa: BLE001 - no device builds here
