@@ -13,6 +13,9 @@ from brdfcl.model.compose import Model
 from brdfcl.model.lobes.cells import Cells
 from brdfcl.report.sample_figures import in_plane, incidence_panels
 
+# -n with --dist loadgroup (the slow tier in .ci/run): this module's fixture is made once
+pytestmark = pytest.mark.xdist_group("test_analyze_samples")
+
 LAMBDAS = tuple(np.round(np.linspace(0.40, 0.70, 11), 3))
 CHANNELS = [Channel(f"{x * 1000:g}nm", x) for x in LAMBDAS]
 

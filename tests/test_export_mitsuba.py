@@ -19,6 +19,9 @@ from brdfcl.report.export.fitfile import fit_document
 from brdfcl.report.export.sampling import Sampler
 from tests.mitsuba_scenes import LIGHT, disc, sphere_scene, use_variant
 
+# -n with --dist loadgroup (the slow tier in .ci/run): this module's fixture is made once
+pytestmark = pytest.mark.xdist_group("test_export_mitsuba")
+
 NAME = "synth-smooth-metal"
 VARIANTS = ["scalar_rgb", "llvm_ad_rgb"]
 

@@ -8,6 +8,9 @@ import pytest
 
 from brdfcl.app.run import fit_all, write_pages
 
+# -n with --dist loadgroup (the slow tier in .ci/run): this module's fixture is made once
+pytestmark = pytest.mark.xdist_group("test_report_pages")
+
 NAMES = ["synth-smooth-metal", "synth-fabric"]
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 PROBE = """<script>window.addEventListener('load', function () {

@@ -18,6 +18,9 @@ from brdfcl.model.compose import Model
 from brdfcl.model.lobes.cells import Cells
 from brdfcl.model.synth import SPECTRAL, Ramp, spectral_values, write_spectral_synth
 
+# -n with --dist loadgroup (the slow tier in .ci/run): this module's fixture is made once
+pytestmark = pytest.mark.xdist_group("test_synth_spectral")
+
 # odd wavelengths and angles: what a repr round trip must keep to the last bit
 LAMBDAS_UM = (0.4, 0.4123456789, 0.55, 0.61, 0.7000000001, 0.78)
 

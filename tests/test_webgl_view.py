@@ -24,6 +24,9 @@ from brdfcl.report.export.glsl_es import to_glsl_es
 from brdfcl.report.view.pages import Entry, material_page, write_report
 from brdfcl.report.view.sphere import render_model_sphere
 
+# -n with --dist loadgroup (the slow tier in .ci/run): this module's fixture is made once
+pytestmark = pytest.mark.xdist_group("test_webgl_view")
+
 GLSLANG = shutil.which("glslangValidator")
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 SPECS = sorted({spec for spec, _ in DEMO.values()} | set(form_keys(DEFAULT_MODEL, DEFAULT_FORMS).values()))
