@@ -13,7 +13,8 @@ from brdfcl.model.compose import Model
 from brdfcl.model.lobes.cells import Cells
 from brdfcl.report.sample_figures import in_plane, incidence_panels
 
-# -n with --dist loadgroup (the slow tier in .ci/run): this module's fixture is made once
+# -n with --dist loadgroup (the slow tier in .ci/run): one process runs this module's tests, not
+# one after another, so its costly fixture is session-scoped: made once there
 pytestmark = pytest.mark.xdist_group("test_analyze_samples")
 
 LAMBDAS = tuple(np.round(np.linspace(0.40, 0.70, 11), 3))
@@ -46,7 +47,7 @@ DIFFRACTING = {"diffuse.rho": 0.02, "diffraction.rho": 0.04, "diffraction.a": 2.
 PLASTIC = {"diffuse.rho": lambda lam: 0.05 + 0.3 * (lam - 0.4), "ct.rho": 0.4, "ct.alpha": 0.08}
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def analysed(tmp_path_factory):
     src = tmp_path_factory.mktemp("spectral")
     write_csv(_material("diffracting", "diffuse+diffraction+ggx", DIFFRACTING), src / "diffracting.csv")

@@ -10,7 +10,7 @@ pytest.importorskip("distributed")
 from brdfcl.app.cluster import make_client  # noqa: E402
 from brdfcl.app.run import fit_all  # noqa: E402
 
-# -n with --dist loadgroup (the slow tier in .ci/run): this module's fixture is made once
+# -n with --dist loadgroup (the slow tier in .ci/run): one process runs this module's tests
 pytestmark = pytest.mark.xdist_group("test_cluster")
 
 NAMES = ["synth-fabric", "synth-mirror", "synth-smooth-plastic", "synth-rough-metal"]

@@ -19,7 +19,8 @@ from brdfcl.report.export.fitfile import fit_document
 from brdfcl.report.export.sampling import Sampler
 from tests.mitsuba_scenes import LIGHT, disc, sphere_scene, use_variant
 
-# -n with --dist loadgroup (the slow tier in .ci/run): this module's fixture is made once
+# -n with --dist loadgroup (the slow tier in .ci/run): one process runs this module's tests, not
+# one after another, so its costly fixture is session-scoped: made once there
 pytestmark = pytest.mark.xdist_group("test_export_mitsuba")
 
 NAME = "synth-smooth-metal"
@@ -42,7 +43,7 @@ def _write_fit(path, spec, values, name="x"):
     return model, np.asarray(values, dtype=np.float64), path
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def fit(tmp_path_factory):
     spec, params = DEMO[NAME]
     model = Model(spec)

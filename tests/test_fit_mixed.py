@@ -12,7 +12,8 @@ import pytest
 CLI = [sys.executable, "-m", "brdfcl.app.cli"]
 # One reflection form for the 31-band spectra: compiling a 31-channel program costs about a minute
 # a form on a cold cache, and the choice among the default forms is tested on tables
-# (test_forms.py); the cluster test below fits two forms to check that every form is fitted in full.
+# (test_forms.py); the cluster test fits two (TWO), to check that scattered samples fit every
+# form in full.
 FORMS = ("--forms", "gtr:dielectric")
 
 
@@ -111,27 +112,39 @@ def test_sample_fits_get_report_pages(krylon, tmp_path, rgb):
         tmp_path / "o" / "report" / "krylon_blue.html").read_text()
 
 
+TWO = ("--forms", ",".join(FORMS[1:] + ("abc:schlick",)))
+
+
 @pytest.mark.slow
-def test_a_cluster_and_the_lobe_comparison_take_the_mixed_folder(mixed, tmp_path):
+def test_a_cluster_takes_the_mixed_folder(mixed, tmp_path):
     """One path for every format: a Dask cluster fits tables and spectral samples alike, as in
-    this process; --select-lobes chooses each material's form and compares its lobes, spectral
-    ones too, and with --rgb in R, G, B."""
+    this process."""
     pytest.importorskip("distributed")
-    two = ("--forms", ",".join(FORMS[1:] + ("abc:schlick",)))
-    r = _run(mixed, "--out", tmp_path / "here", forms=two)
-    c = _run(mixed, "--out", tmp_path / "cluster", "--workers", "2", forms=two)
+    r = _run(mixed, "--out", tmp_path / "here", forms=TWO)
+    c = _run(mixed, "--out", tmp_path / "cluster", "--workers", "2", forms=TWO)
     assert "fitted 2 materials" in c.stdout and "1 skipped" in c.stdout, c.stderr
     for name in ("krylon_blue", "synth-fabric"):
         a, b = (json.loads((tmp_path / d / f"{name}.json").read_text()) for d in ("here", "cluster"))
         assert a["errors"]["rmse_log"] == b["errors"]["rmse_log"] and a["form"] == b["form"], name
     assert r.returncode == c.returncode == 1                       # bad.csv skipped in both
-    s = _run(mixed, "--out", tmp_path / "selected", "--select-lobes", forms=two)
+    # scattered samples have no preview cells: every form fitted in full
+    k = json.loads((tmp_path / "here" / "krylon_blue.json").read_text())
+    assert len(k["wavelengths_um"]) == 31 and set(k["form_errors"]) == set(TWO[1].split(","))
+    assert all("rmse_log" in v for v in k["form_errors"].values())
+
+
+@pytest.mark.slow
+def test_the_lobe_comparison_takes_the_mixed_folder(mixed, tmp_path):
+    """--select-lobes chooses each material's form and compares its lobes, spectral ones too."""
+    s = _run(mixed, "--out", tmp_path / "selected", "--select-lobes")
     assert "fitted 2 materials" in s.stdout, s.stderr
     k = json.loads((tmp_path / "selected" / "krylon_blue.json").read_text())
-    assert k["selected_by"] == "lobe comparison" and k["verdict"] == "none" and k["form"] in two[1].split(",")
-    # scattered samples have no preview cells: every form fitted in full
-    assert len(k["wavelengths_um"]) == 31 and set(k["form_errors"]) == set(two[1].split(","))
-    assert all("rmse_log" in v for v in k["form_errors"].values())
+    assert k["selected_by"] == "lobe comparison" and k["verdict"] == "none" and k["form"] == FORMS[1]
+    assert len(k["wavelengths_um"]) == 31
+
+
+@pytest.mark.slow
+def test_the_lobe_comparison_takes_the_mixed_folder_in_rgb(mixed, tmp_path):
     pytest.importorskip("colour")
     g = _run(mixed, "--out", tmp_path / "rgb", "--select-lobes", "--rgb")
     assert "fitted 2 materials" in g.stdout, g.stderr

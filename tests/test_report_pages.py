@@ -8,7 +8,8 @@ import pytest
 
 from brdfcl.app.run import fit_all, write_pages
 
-# -n with --dist loadgroup (the slow tier in .ci/run): this module's fixture is made once
+# -n with --dist loadgroup (the slow tier in .ci/run): one process runs this module's tests, not
+# one after another, so its costly fixture is session-scoped: made once there
 pytestmark = pytest.mark.xdist_group("test_report_pages")
 
 NAMES = ["synth-smooth-metal", "synth-fabric"]
@@ -21,7 +22,7 @@ PROBE = """<script>window.addEventListener('load', function () {
 });</script>"""
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def run(demo_db, tmp_path_factory):
     out = tmp_path_factory.mktemp("report") / "out"
     paths = [demo_db / f"{n}.binary" for n in NAMES]

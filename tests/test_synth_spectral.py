@@ -18,7 +18,8 @@ from brdfcl.model.compose import Model
 from brdfcl.model.lobes.cells import Cells
 from brdfcl.model.synth import SPECTRAL, Ramp, spectral_values, write_spectral_synth
 
-# -n with --dist loadgroup (the slow tier in .ci/run): this module's fixture is made once
+# -n with --dist loadgroup (the slow tier in .ci/run): one process runs this module's tests, not
+# one after another, so its costly fixture is session-scoped: made once there
 pytestmark = pytest.mark.xdist_group("test_synth_spectral")
 
 # odd wavelengths and angles: what a repr round trip must keep to the last bit
@@ -88,7 +89,7 @@ def test_parameters_by_band():
         spectral_values(model, {"ct.eta": 1.5})
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def written(tmp_path_factory, krylon):
     out = tmp_path_factory.mktemp("spectral")
     truth = write_spectral_synth(out, krylon.path, log=None)

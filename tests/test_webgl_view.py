@@ -24,7 +24,8 @@ from brdfcl.report.export.glsl_es import to_glsl_es
 from brdfcl.report.view.pages import Entry, material_page, write_report
 from brdfcl.report.view.sphere import render_model_sphere
 
-# -n with --dist loadgroup (the slow tier in .ci/run): this module's fixture is made once
+# -n with --dist loadgroup (the slow tier in .ci/run): one process runs this module's tests, not
+# one after another, so its costly fixture is session-scoped: made once there
 pytestmark = pytest.mark.xdist_group("test_webgl_view")
 
 GLSLANG = shutil.which("glslangValidator")
@@ -130,7 +131,7 @@ PROBE = """<script>window.addEventListener('load', function () {
 SIZE = 48
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def pages(demo_db, tmp_path_factory):
     from brdfcl.report.writers.pages import _read_cells
     out = tmp_path_factory.mktemp("webgl")
