@@ -22,13 +22,15 @@ import numpy as np
 from brdfcl.data.readers import read_samples
 from brdfcl.model.compose import Model
 from brdfcl.model.lobes.cells import Cells
+from brdfcl.model.terms import REGISTRY
 
 
 def _fresnel(c, eta):
-    g = np.sqrt(eta**2 - 1 + c**2)
-    a = (g - c) / (g + c)
-    b = (c * (g + c) - 1) / (c * (g - c) + 1)
-    return 0.5 * a**2 * (1 + b**2)
+    """brdfcl's dielectric Fresnel term (float64 reference) at cos theta_d = ``c``: evaluated on
+    mirror cells (theta_h = 0), where theta_d is the angle of incidence."""
+    s = np.sqrt(1 - c**2)
+    cells = Cells.from_directions(np.stack([s, 0 * c, c], -1), np.stack([-s, 0 * c, c], -1))
+    return REGISTRY["fresnel"]["dielectric"].reference(cells, eta=eta)[0]
 
 
 def main(argv=None):
@@ -87,7 +89,7 @@ def main(argv=None):
     print(f"| Lambert | {refit(np.ones_like(ci)):.4f} |")
     print(f"| Ashikhmin-Shirley | {refit((1 - (1 - ci / 2) ** 5) * (1 - (1 - co / 2) ** 5)):.4f} |")
     etas = np.linspace(1.01, 6.0, 200)
-    e = [refit((1 - _fresnel(ci, x)) * (1 - _fresnel(co, x)) / (1 - _fresnel(1.0, x)) ** 2) for x in etas]
+    e = [refit((1 - _fresnel(ci, x)) * (1 - _fresnel(co, x)) / (1 - _fresnel(np.ones(1), x)) ** 2) for x in etas]
     print(f"| Fresnel transmission, best eta {etas[int(np.argmin(e))]:.2f} | {min(e):.4f} |")
     ps = np.linspace(0.0, 2.0, 201)
     e = [refit((ci * co) ** p) for p in ps]

@@ -15,6 +15,8 @@ CLI = [sys.executable, "-m", "brdfcl.app.cli"]
 # (test_forms.py); the cluster test fits two (TWO), to check that scattered samples fit every
 # form in full.
 FORMS = ("--forms", "gtr:dielectric")
+TWO_FORMS = ("gtr:dielectric", "abc:schlick")
+TWO = ("--forms", ",".join(TWO_FORMS))
 
 
 @pytest.fixture(scope="module")
@@ -112,9 +114,6 @@ def test_sample_fits_get_report_pages(krylon, tmp_path, rgb):
         tmp_path / "o" / "report" / "krylon_blue.html").read_text()
 
 
-TWO = ("--forms", ",".join(FORMS[1:] + ("abc:schlick",)))
-
-
 @pytest.mark.slow
 def test_a_cluster_takes_the_mixed_folder(mixed, tmp_path):
     """One path for every format: a Dask cluster fits tables and spectral samples alike, as in
@@ -129,7 +128,7 @@ def test_a_cluster_takes_the_mixed_folder(mixed, tmp_path):
     assert r.returncode == c.returncode == 1                       # bad.csv skipped in both
     # scattered samples have no preview cells: every form fitted in full
     k = json.loads((tmp_path / "here" / "krylon_blue.json").read_text())
-    assert len(k["wavelengths_um"]) == 31 and set(k["form_errors"]) == set(TWO[1].split(","))
+    assert len(k["wavelengths_um"]) == 31 and set(k["form_errors"]) == set(TWO_FORMS)
     assert all("rmse_log" in v for v in k["form_errors"].values())
 
 
