@@ -5,6 +5,7 @@ import pytest
 from brdfcl.data.geometry import table_geometry
 from brdfcl.data.merl import read_merl
 from brdfcl.device.engine import Engine, select_cells
+from brdfcl.model.compose import Model
 from brdfcl.model.metrics import METRICS, errors, transform
 
 SPECS = ["diffuse+diffraction+ggx",
@@ -37,11 +38,24 @@ def _reference(model, cells, meas, w, values, metric):
 @pytest.mark.parametrize("real, tol", [pytest.param("double", 1e-10, marks=pytest.mark.slow), ("float", 1e-5)])
 @pytest.mark.parametrize("spec", SPECS)
 def test_kernels_match_reference(tables, spec, real, tol):
+    _match_reference(tables, spec, real, tol)
+
+
+@pytest.mark.parametrize("spec, fixed", [
+    (SPECS[0], {}), (SPECS[1], {}), (SPECS[1], {f"diffraction.k_{c}": 2.0 for c in "rgb"}),
+    (SPECS[4], {"diffraction.eta": 1.5})])
+def test_kernels_with_a_loop_over_channels_match_reference(tables, spec, fixed):
+    """The kernels written as one loop over the channels (as for many-band spectral models)
+    compute what the unrolled ones do: per-channel columns, shared ones and their J^T J."""
+    _match_reference(tables, spec, "float", 1e-5, channel_loop=True, fixed=fixed)
+
+
+def _match_reference(tables, spec, real, tol, fixed=None, **options):
     rng = np.random.default_rng(len(spec))
     full = spec == SPECS[0]
     idx = select_cells(90 if full else 80)[:: 1 if full else 13]     # all valid cells for the full model
     metric = METRICS[len(spec) % 3]
-    eng = Engine(spec, real=real, metric=metric)
+    eng = Engine(Model(spec, fixed=fixed), real=real, metric=metric, **options)
     cs = eng.cellset(tables, idx)
     cells = cs.cells()
     w = table_geometry().weight[idx]
@@ -124,3 +138,23 @@ def test_device_selection():
     assert is_cpu(pick_device("cpu")[1])
     with pytest.raises(DeviceError, match="no OpenCL device"):
         pick_device("no-such-gpu")
+
+
+def test_many_channels_share_one_loop_unless_their_parameters_differ_in_kind():
+    """From LOOP_FROM channels on, a program is one loop over its channels (its size does not
+    grow with their number); a per-channel parameter fixed in some channels and free in others
+    cannot share a body, and that model is written channel by channel."""
+    from brdfcl.kernels.codegen import LOOP_FROM, KernelOptions, render
+    from brdfcl.model.lobes.lobe import NotLoopable
+
+    def model(n, fixed=None):
+        return Model(SPECS[1], fixed=fixed, lambdas=tuple(0.40 + 0.01 * i for i in range(n)))
+
+    size = {n: len(render(model(n), KernelOptions())) for n in (LOOP_FROM, 31)}
+    assert "one loop over the 31 channels" in render(model(31), KernelOptions())
+    assert size[31] < 1.5 * size[LOOP_FROM]                # the slot loads grow, not the code
+    assert "written out one by one" in render(model(3), KernelOptions())
+    mixed = model(31, {"diffraction.k_400nm": 2.0})
+    assert "written out one by one" in render(mixed, KernelOptions())
+    with pytest.raises(NotLoopable, match="diffraction.k_400nm"):
+        render(mixed, KernelOptions(channel_loop=True))

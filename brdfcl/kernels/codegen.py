@@ -17,7 +17,7 @@ from brdfcl._cache import generated
 from brdfcl.kernels import inline_math
 from brdfcl.kernels.terms import c_source, cell_source
 from brdfcl.model.compose import Model
-from brdfcl.model.lobes.lobe import Emitter
+from brdfcl.model.lobes.lobe import Emitter, NotLoopable
 from brdfcl.model.metrics import IMPLEMENTED_METRICS, check_metric
 from brdfcl.model.terms import REGISTRY
 from brdfcl.model.terms.keys import sympy_version
@@ -84,6 +84,7 @@ class KernelOptions:
     chunk: int = 256            # vectors per work-group
     metric: str = "log"
     cosw: bool = True           # cos(theta_i) factor in the residual
+    channel_loop: bool | None = None    # one loop over channels (None: from LOOP_FROM channels on)
 
     def __post_init__(self):
         check_metric(self.metric)
@@ -93,11 +94,60 @@ class KernelOptions:
             raise ValueError(f"vector width {self.vw} / local size {self.local}: powers of two expected")
 
 
-def emit(model: Model) -> Emitter:
-    em = Emitter(model.column, model.n_channels)
+LOOP_FROM = 4
+"""Models of this many channels or more are written as one loop over their channels: an
+unrolled 31-band program is 31 copies of the per-channel code, which PoCL takes tens of seconds
+to compile; RGB models keep the unrolled code (constants folded per channel)."""
+
+
+def emit(model: Model, loop: bool = False) -> Emitter:
+    """The C of ``model``'s lobes, channel by channel or (``loop``) once for a loop over channels
+    (`NotLoopable` where the channels cannot share one body)."""
+    em = Emitter(model.column, model.n_channels, model.position if loop else None)
     for lb in model.lobes:
         lb.emit(em)
     return em
+
+
+def _loop_emitter(model: Model, opt: KernelOptions) -> Emitter | None:
+    want = opt.channel_loop if opt.channel_loop is not None else model.n_channels >= LOOP_FROM
+    if not want:
+        return None
+    try:
+        return emit(model, loop=True)
+    except NotLoopable:
+        if opt.channel_loop:
+            raise
+        return None
+
+
+def _loop_tables(em: Emitter, pairs) -> tuple[list, dict]:
+    """The loop body's Jacobian columns and J^T J entries: ([(key, C column)], {(key a, key b): C
+    index into the kernels' pair order}); a per-channel entry indexes a table by ``ch``."""
+    n = em.n_channels
+    keys = sorted(em.loop_jac)
+    col = {k: (lambda c, k=k: k[0] + (c if k[1] else 0)) for k in keys}
+    index = {ab: i for i, ab in enumerate(pairs)}
+    seen = set()
+    out = {}
+    for a in keys:
+        for b in keys:
+            if col[b](0) < col[a](0):
+                continue
+            idx = []
+            for c in range(n):
+                ab = (col[a](c), col[b](c))
+                seen.add(ab)
+                idx.append(index[ab])
+            if a[1] or b[1]:
+                name = f"PAIR_{len(em.tables)}"
+                em.tables[name] = idx
+                out[(a, b)] = f"{name}[ch]"
+            else:
+                out[(a, b)] = str(idx[0])
+    assert seen == set(pairs), "the loop's J^T J entries are the kernels' pairs"
+    cols = [(k, f"{k[0]} + ch" if k[1] else str(k[0])) for k in keys]
+    return cols, out
 
 
 def term_sources(model: Model) -> list[str]:
@@ -114,6 +164,9 @@ def render(model: Model, opt: KernelOptions) -> str:
     for ch in range(model.n_channels):
         cols |= set(em.jac[ch])
     assert cols == set(range(model.n_free)), "every free parameter needs a Jacobian column"
+    lem = _loop_emitter(model, opt)
+    loop_cols, loop_pairs = _loop_tables(lem, pairs) if lem else ([], {})
+    keys = [k for k, _ in loop_cols]
     vec = "" if opt.vw == 1 else str(opt.vw)
     fit_g, fit_dg = IMPLEMENTED_METRICS[opt.metric].c("x", "g")    # metric_g / metric_dg
     kw = dict(
@@ -128,7 +181,13 @@ def render(model: Model, opt: KernelOptions) -> str:
         slots=model.slots, n_slots=model.n_params, n_ch=model.n_channels,
         consts=["K_" + k.replace(".", "_") for k in model.const_names],
         n_prm=model.n_params + len(model.const_names), n_free=model.n_free,
-        lines=em.lines, value=em.value, jac=em.jac, pairs=pairs)
+        lines=em.lines, value=em.value, jac=em.jac, pairs=pairs, ch_loop=lem is not None,
+        loop_lines=lem.lines if lem else [], body=lem.body if lem else [],
+        loop_value=lem.loop_value if lem else [],
+        loop_jac=[(i, c, lem.loop_jac[k]) for i, (k, c) in enumerate(loop_cols)] if lem else [],
+        loop_pairs=[(keys.index(ka), keys.index(kb), c) for (ka, kb), c in loop_pairs.items()],
+        loads=sorted(lem.loads.items()) if lem else [],
+        tables=[(n, "int" if n.startswith("PAIR_") else "real", v) for n, v in lem.tables.items()] if lem else [])
     key = hashlib.sha1((kernel_sources_hash() + repr(sorted(kw.items()))).encode()).hexdigest()[:24]
     return generated("kernel", key, lambda: _template().render(**kw), keep=KEEP_RENDERED)
 

@@ -4,7 +4,8 @@
  * Work layout: dimension 0 = evaluation (a parameter vector for one material), dimension 1 =
  * chunks of cells; a work-group of ${wg} items strides over ${chunk} vectors of ${vw} cells,
  * accumulates in private vectors, reduces in local memory and writes one partial sum per
- * output; the host adds the partials in float64 (bounded float accumulation, exact total). */
+ * output; the host adds the partials in float64 (bounded float accumulation, exact total).
+ * Channels: ${'one loop over the ' + str(n_ch) + ' channels' if ch_loop else 'written out one by one'}. */
 % if real == "double":
 #pragma OPENCL EXTENSION cl_khr_fp64 : enable
 % endif
@@ -36,6 +37,13 @@ ${src}
 % for src in sources:
 ${src}
 % endfor
+% if ch_loop:
+
+/* each channel's numbers (Known.k) and J^T J entries, read in the loop over channels */
+% for name, ctype, vals in tables:
+__constant ${ctype} ${name}[${len(vals)}] = {${', '.join(('(real)%r' % v) if ctype == 'real' else str(v) for v in vals)}};
+% endfor
+% endif
 
 /* metric (brdfcl/metrics.py) */
 inline real_v metric_g(real_v x)
@@ -68,7 +76,9 @@ inline real hsum(real_v v)
     const int lid = get_local_id(1);
     __global const real *P = prm + (size_t)e * ${n_prm};
 % for s in slots:
+% if not (ch_loop and s.channel is not None):
     const real ${s.cname} = P[${loop.index}];
+% endif
 % endfor
 % for k in consts:
     const real ${k} = P[${n_slots + loop.index}];
@@ -83,12 +93,43 @@ inline real hsum(real_v v)
         cell_t c = make_cell(VLOAD(G, o), VLOAD(G, n_cells + o), VLOAD(G, 2 * n_cells + o),
                              VLOAD(G, 3 * n_cells + o), VLOAD(G, 4 * n_cells + o));
         const real_v w = VLOAD(G, 5 * n_cells + o);
+% if ch_loop:
+% for line in loop_lines:
+        ${line}
+% endfor
+% else:
 % for line in lines:
         ${line}
 % endfor
 % for ch in range(n_ch):
         const real_v p${ch} = ${' + '.join(value[ch]) if value[ch] else '(real_v)0'};
 % endfor
+% endif
+</%def>
+
+<%def name="channel_model()">
+% for name, pos in loads:
+            const real ${name} = P[${pos} + ch];
+% endfor
+% for line in body:
+            ${line}
+% endfor
+            const real_v p = ${' + '.join(loop_value) if loop_value else '(real_v)0'};
+</%def>
+
+<%def name="channel_residual()">
+            const real_v t = VLOAD(M, ch * n_cells + o);     /* g(m cw), from the target kernel */
+            const real_v x = p * cw;
+            const real_v gx = metric_g(x);
+            const real_v wc = SEL(w, (real_v)0, t != t);   /* NaN: a missing cell */
+            const real_v r = SEL(gx - t, (real_v)0, t != t);
+</%def>
+
+<%def name="arrays(n_g, n_h)">
+    real_v acc_l = 0;
+    real_v acc_g[${max(n_g, 1)}], acc_h[${max(n_h, 1)}];
+    for (int k = 0; k < ${max(n_g, 1)}; k++) acc_g[k] = 0;
+    for (int k = 0; k < ${max(n_h, 1)}; k++) acc_h[k] = 0;
 </%def>
 
 <%def name="residuals()">
@@ -102,11 +143,7 @@ inline real hsum(real_v v)
 % endfor
 </%def>
 
-<%def name="reduce_and_write(names)">
-    /* work-group reduction, then one partial per output */
-    __local real red[${wg}];
-    __global real *out_e = out + ((size_t)e * ng + g) * ${len(names)};
-% for a in names:
+<%def name="reduce_one(a, index)">
     red[lid] = hsum(${a});
 % if wg > 1:
     barrier(CLK_LOCAL_MEM_FENCE);
@@ -115,10 +152,25 @@ inline real hsum(real_v v)
         barrier(CLK_LOCAL_MEM_FENCE);
     }
 % endif
-    if (lid == 0) out_e[${loop.index}] = red[0];
+    if (lid == 0) out_e[${index}] = red[0];
 % if wg > 1:
     barrier(CLK_LOCAL_MEM_FENCE);
 % endif
+</%def>
+
+<%def name="reduce_and_write(names, arrays=())">
+    /* work-group reduction, then one partial per output */
+    __local real red[${wg}];
+    __global real *out_e = out + ((size_t)e * ng + g) * ${len(names) + sum(n for _, n in arrays)};
+% for a in names:
+${reduce_one(a, loop.index)}
+% endfor
+<% at = len(names) %>\
+% for a, n in arrays:
+    for (int k = 0; k < ${n}; k++) {
+${reduce_one(a + '[k]', str(at) + ' + k')}
+    }
+<% at += n %>\
 % endfor
 </%def>
 
@@ -141,9 +193,14 @@ __kernel __attribute__((reqd_work_group_size(1, ${wg}, 1))) void target(KARGS)
     for (int v = v0 + lid; v < v1; v += ${wg}) {
         const int o = v * ${vw};
         const real_v cw = ${'VLOAD(G, 3 * n_cells + o)' if cosw else '(real_v)1'};
+% if ch_loop:
+        for (int ch = 0; ch < ${n_ch}; ch++)
+            *(__global real_v *)(T + ch * n_cells + o) = metric_g(VLOAD(M, ch * n_cells + o) * cw);
+% else:
 % for ch in range(n_ch):
         *(__global real_v *)(T + ${ch} * n_cells + o) = metric_g(VLOAD(M, ${ch} * n_cells + o) * cw);
 % endfor
+% endif
     }
 }
 
@@ -154,10 +211,19 @@ ${prologue()}
     real_v acc_l = 0;
     for (int v = v0 + lid; v < v1; v += ${wg}) {
 ${cell_and_model()}
+% if ch_loop:
+        const real_v cw = ${'c.ci' if cosw else '(real_v)1'};
+        for (int ch = 0; ch < ${n_ch}; ch++) {
+${channel_model()}
+${channel_residual()}
+            acc_l += wc * r * r;
+        }
+% else:
 ${residuals()}
 % for ch in range(n_ch):
         acc_l += w${ch} * r${ch} * r${ch};
 % endfor
+% endif
     }
 ${reduce_and_write(['acc_l'])}
 }
@@ -166,12 +232,28 @@ ${reduce_and_write(['acc_l'])}
 __kernel __attribute__((reqd_work_group_size(1, ${wg}, 1))) void grad(KARGS)
 {
 ${prologue()}
+% if ch_loop:
+${arrays(n_free, 0)}
+% else:
     real_v acc_l = 0;
 % for k in range(n_free):
     real_v acc_g${k} = 0;
 % endfor
+% endif
     for (int v = v0 + lid; v < v1; v += ${wg}) {
 ${cell_and_model()}
+% if ch_loop:
+        const real_v cw = ${'c.ci' if cosw else '(real_v)1'};
+        for (int ch = 0; ch < ${n_ch}; ch++) {
+${channel_model()}
+${channel_residual()}
+            acc_l += wc * r * r;
+            const real_v q = wc * r * metric_dg(x, gx) * cw;
+% for i, col, parts in loop_jac:
+            acc_g[${col}] += q * (${' + '.join(parts)});
+% endfor
+        }
+% else:
 ${residuals()}
 % for ch in range(n_ch):
         {
@@ -182,14 +264,22 @@ ${residuals()}
 % endfor
         }
 % endfor
+% endif
     }
+% if ch_loop:
+${reduce_and_write(['acc_l'], [('acc_g', n_free)])}
+% else:
 ${reduce_and_write(['acc_l'] + ['acc_g%d' % k for k in range(n_free)])}
+% endif
 }
 
 /* loss, J^T W r and the upper triangle of J^T W J (Gauss-Newton / Levenberg-Marquardt) */
 __kernel __attribute__((reqd_work_group_size(1, ${wg}, 1))) void jtj(KARGS)
 {
 ${prologue()}
+% if ch_loop:
+${arrays(n_free, len(pairs))}
+% else:
     real_v acc_l = 0;
 % for k in range(n_free):
     real_v acc_g${k} = 0;
@@ -197,8 +287,25 @@ ${prologue()}
 % for (a, b) in pairs:
     real_v acc_h${a}_${b} = 0;
 % endfor
+% endif
     for (int v = v0 + lid; v < v1; v += ${wg}) {
 ${cell_and_model()}
+% if ch_loop:
+        const real_v cw = ${'c.ci' if cosw else '(real_v)1'};
+        for (int ch = 0; ch < ${n_ch}; ch++) {
+${channel_model()}
+${channel_residual()}
+            acc_l += wc * r * r;
+            const real_v dg = metric_dg(x, gx) * cw;
+% for i, col, parts in loop_jac:
+            const real_v u${i} = dg * (${' + '.join(parts)});
+            acc_g[${col}] += wc * r * u${i};
+% endfor
+% for ia, ib, idx in loop_pairs:
+            acc_h[${idx}] += wc * u${ia} * u${ib};
+% endfor
+        }
+% else:
 ${residuals()}
 % for ch in range(n_ch):
         {
@@ -220,8 +327,13 @@ ${residuals()}
 % endfor
         }
 % endfor
+% endif
     }
+% if ch_loop:
+${reduce_and_write(['acc_l'], [('acc_g', n_free), ('acc_h', len(pairs))])}
+% else:
 ${reduce_and_write(['acc_l'] + ['acc_g%d' % k for k in range(n_free)] + ['acc_h%d_%d' % ab for ab in pairs])}
+% endif
 }
 
 /* every reported error at once: sum w r^2 for ${', '.join(n for n, _, _ in reported)}, sum w x_m^2, sum w */
@@ -232,11 +344,17 @@ ${prologue()}
     for (int v = v0 + lid; v < v1; v += ${wg}) {
 ${cell_and_model()}
         const real_v cw = ${'c.ci' if cosw else '(real_v)1'};
-% for ch in range(n_ch):
+% for ch in (['ch'] if ch_loop else range(n_ch)):
+% if ch_loop:
+        for (int ch = 0; ch < ${n_ch}; ch++) {
+${channel_model()}
+% else:
         {
+        const real_v p = p${ch};
+% endif
         const real_v m = VLOAD(M, ${ch} * n_cells + o);
         const real_v ww = SEL(w, (real_v)0, m != m);
-        const real_v xm = SEL(m * cw, (real_v)0, m != m), xp = SEL(p${ch} * cw, (real_v)0, m != m);
+        const real_v xm = SEL(m * cw, (real_v)0, m != m), xp = SEL(p * cw, (real_v)0, m != m);
 % for n, gp, gm in reported:
         const real_v d_${n} = ${gp} - ${gm};
 % endfor
@@ -262,19 +380,29 @@ __kernel void predict(__global const real *geom, const int n_cells, const int ge
     __global const real *P = prm + (size_t)e * ${n_prm};
     __global const real *G = geom + (size_t)mat[e] * geo_stride;
 % for s in slots:
+% if not (ch_loop and s.channel is not None):
     const real ${s.cname} = P[${loop.index}];
+% endif
 % endfor
 % for k in consts:
     const real ${k} = P[${n_slots + loop.index}];
 % endfor
     {
 ${cell_and_model()}
-% for ch in range(n_ch):
-% if vw == 1:
-        out[((size_t)e * ${n_ch} + ${ch}) * n_cells + o] = p${ch};
+% for ch in (['ch'] if ch_loop else range(n_ch)):
+% if ch_loop:
+        for (int ch = 0; ch < ${n_ch}; ch++) {
+${channel_model()}
 % else:
-        vstore${vw}(p${ch}, 0, out + ((size_t)e * ${n_ch} + ${ch}) * n_cells + o);
+        {
+        const real_v p = p${ch};
 % endif
+% if vw == 1:
+        out[((size_t)e * ${n_ch} + ${ch}) * n_cells + o] = p;
+% else:
+        vstore${vw}(p, 0, out + ((size_t)e * ${n_ch} + ${ch}) * n_cells + o);
+% endif
+        }
 % endfor
     }
 }

@@ -168,6 +168,10 @@ class Model:
     def n_free(self):
         return len(self.free_index)
 
+    def position(self, name):
+        """Index of a parameter in the parameter vector (the kernels' ``P``)."""
+        return self._pos[name]
+
     def column(self, name):
         """Column of a parameter in the free (Jacobian) vector, None if fixed."""
         i = self._pos[name]

@@ -29,7 +29,7 @@ class Diffraction(Lobe):
 
     def parts(self, ch):
         lam = self.lambdas[ch]
-        f = Known(f"c.f0 * (real){1.0 / lam!r}", lambda cells: cells.f0 / lam)
-        return (Known(f"(real){lam ** -4!r}", lambda cells: lam ** -4),
+        f = Known("c.f0 * {k}", lambda cells: cells.f0 / lam, k=1.0 / lam)
+        return (Known("{k}", lambda cells: lam ** -4, k=lam ** -4),
                 [Factor(self.psd, arg=f, channel=ch),
                  Factor(self.fresnel, channel=ch if self.fresnel.per_channel else None)])

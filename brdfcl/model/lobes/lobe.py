@@ -61,10 +61,19 @@ def c_name(slot_name: str) -> str:
 @dataclass(frozen=True)
 class Known:
     """A parameter-free quantity of the cell, written in both languages: a lobe's scale or the
-    argument of a term (a PSD's frequency)."""
+    argument of a term (a PSD's frequency).  ``k`` is a number of the channel (1 / lambda) that
+    the C names ``{k}``: a literal where each channel has its own code, an entry of a table where
+    one loop serves every channel."""
 
     c: str                                 # C, over the kernel's cell ``c`` (``c.inv4cico``)
     ref: Callable                          # Cells -> float64 numpy (or a number)
+    k: float | None = None
+
+    def code(self, k: str | None = None) -> str:
+        """The C, with the channel's number written as a literal or as the C expression ``k``."""
+        if self.k is None:
+            return self.c
+        return self.c.format(k=k if k is not None else f"(real){self.k!r}")
 
 
 @dataclass(frozen=True)
@@ -76,25 +85,103 @@ class Factor:
     channel: int | None = None             # the channel it depends on (None: shared by all)
 
 
-class Emitter:
-    """Collects the C lines and the per-channel value and Jacobian expressions of a model."""
+LOOP = "ch"
+"""The channel of `Emitter` code written once for all channels: the C loop variable."""
 
-    def __init__(self, index_of, n_channels=3):
+
+class NotLoopable(ValueError):
+    """A model whose channels cannot share one loop body (a per-channel parameter fixed in some
+    channels and free in others): its kernels are written channel by channel."""
+
+
+class Emitter:
+    """Collects the C of a model: lines shared by all channels, and per channel the value and
+    Jacobian expressions (``jac[ch]``: {column: [C terms]}).
+
+    Unrolled (``position_of`` None), every channel gets its own code.  With ``position_of`` (slot
+    name -> index in the parameter vector), per-channel code is written once for the loop
+    variable ``ch``: ``body`` its lines, ``loop_value`` the value's terms, ``loop_jac`` {(column of
+    channel 0, per channel): [C terms]} (a per-channel column is that plus ``ch``), ``loads`` the
+    per-channel parameters read from ``P``, ``tables`` the channels' numbers of `Known`s."""
+
+    def __init__(self, index_of, n_channels=3, position_of=None):
         self.lines: list[str] = []
         self.value: list[list[str]] = [[] for _ in range(n_channels)]
         self.jac: list[dict[int, list[str]]] = [{} for _ in range(n_channels)]
+        self.n_channels = n_channels
+        self.loop = position_of is not None
+        self.body: list[str] = []
+        self.loop_value: list[str] = []
+        self.loop_jac: dict[tuple[int, bool], list[str]] = {}
+        self.loads: dict[str, int] = {}          # C name -> index of channel 0 in P
+        self.tables: dict[str, list] = {}         # C table name -> its value per channel
         self._index_of = index_of        # slot name -> column (None when fixed)
+        self._position_of = position_of
+
+    def channels(self):
+        """The channels to write code for: each one, or `LOOP` once."""
+        return [LOOP] if self.loop else range(self.n_channels)
 
     def line(self, s):
+        """A C line shared by every channel."""
         self.lines.append(s)
 
-    def add(self, ch, expr):
-        self.value[ch].append(expr)
+    def channel_line(self, s):
+        """A C line of one channel's code (in a loop, of the loop's body)."""
+        (self.body if self.loop else self.lines).append(s)
 
-    def add_jac(self, ch, slot_name, expr):
-        col = self._index_of(slot_name)
-        if col is not None:
-            self.jac[ch].setdefault(col, []).append(expr)
+    def tag(self, ch):
+        """The suffix of a channel's C names."""
+        return "_c" if ch == LOOP else f"_{ch}"
+
+    def param(self, ch, name_of):
+        """The C name of the slot ``name_of(ch)`` in channel ``ch``."""
+        if ch != LOOP:
+            return c_name(name_of(ch))
+        names = [name_of(c) for c in range(self.n_channels)]
+        if len(set(names)) == 1:
+            return c_name(names[0])
+        pos = [self._position_of(n) for n in names]
+        if pos != list(range(pos[0], pos[0] + len(pos))):
+            raise NotLoopable(f"{names[0]}: its channels are not consecutive parameters")
+        cname = c_name(names[0].rsplit("_", 1)[0]) + "_c"
+        self.loads[cname] = pos[0]
+        return cname
+
+    def known(self, ch, known_of, name):
+        """The C of the `Known` ``known_of(ch)``; in a loop, its number from the table ``name``."""
+        if ch != LOOP:
+            return known_of(ch).code()
+        ks = [known_of(c) for c in range(self.n_channels)]
+        if len({k.c for k in ks}) != 1:
+            raise NotLoopable(f"{name}: the channels' C differs beyond their number")
+        if ks[0].k is None:
+            return ks[0].c
+        table = "KT_" + name
+        self.tables[table] = [k.k for k in ks]
+        return ks[0].code(f"{table}[ch]")
+
+    def add(self, ch, expr):
+        (self.loop_value if ch == LOOP else self.value[ch]).append(expr)
+
+    def add_jac(self, ch, name_of, expr):
+        """A term of the derivative with respect to the slot ``name_of(ch)``."""
+        if ch != LOOP:
+            col = self._index_of(name_of(ch))
+            if col is not None:
+                self.jac[ch].setdefault(col, []).append(expr)
+            return
+        names = [name_of(c) for c in range(self.n_channels)]
+        cols = [self._index_of(n) for n in names]
+        if all(c is None for c in cols):
+            return
+        if len(set(names)) == 1:
+            key = (cols[0], False)
+        elif None not in cols and cols == list(range(cols[0], cols[0] + len(cols))):
+            key = (cols[0], True)
+        else:
+            raise NotLoopable(f"{names[0]}: fixed in some channels and free in others")
+        self.loop_jac.setdefault(key, []).append(expr)
 
 
 class Lobe:
@@ -204,11 +291,11 @@ class Lobe:
         """The OpenCL C that computes what ``reference`` does."""
         pre = self.prefix
         parts = [self.parts(ch) for ch in range(len(self.lambdas))]
-        shared_scale = len({s.c if s else None for s, _ in parts}) == 1
+        shared_scale = len({(s.c, s.k) if s else None for s, _ in parts}) == 1
         shared = [f for f in parts[0][1] if f.channel is None]
         # the channel-independent part: S = scale * prod(shared factors), and dS
-        calls = [self._emit_term(em, f) for f in shared]
-        base = [parts[0][0].c] if shared_scale and parts[0][0] else []
+        calls = [self._emit_term(em, None, lambda c, f=f: f) for f in shared]
+        base = [parts[0][0].code()] if shared_scale and parts[0][0] else []
         S = None
         dS: dict[str, str] = {}
         if calls or base:
@@ -217,41 +304,50 @@ class Lobe:
             sums: dict[str, list[str]] = {}
             for i, (_, d) in enumerate(calls):
                 others = [v for j, (v, _) in enumerate(calls) if j != i] + base
-                for name, dv in d.items():
-                    sums.setdefault(name, []).append(" * ".join([dv] + others))
+                for name_of, dv in d:
+                    sums.setdefault(name_of(0), []).append(" * ".join([dv] + others))
             for name, terms in sums.items():
                 dS[name] = f"{pre}_dshape_{name.split('.', 1)[1]}"
                 em.line(f"const real_v {dS[name]} = {' + '.join(terms)};")
-        for ch, (scale, factors) in enumerate(parts):
-            own = [self._emit_term(em, f) for f in factors if f.channel is not None]
-            amp = c_name(self.slot_name(self.amplitude.name, ch))
-            k = [] if shared_scale or scale is None else [f"({scale.c})"]
+        n_own = sum(f.channel is not None for f in parts[0][1])
+        for ch in em.channels():
+            own = [self._emit_term(em, ch, lambda c, j=j: [f for f in parts[c][1] if f.channel is not None][j])
+                   for j in range(n_own)]
+            amp_of = lambda c: self.slot_name(self.amplitude.name, c)     # noqa: E731
+            amp = em.param(ch, amp_of)
+            k = [] if shared_scale or parts[0][0] is None else \
+                [f"({em.known(ch, lambda c: parts[c][0], f'{pre}_scale')})"]
             if k:
-                em.line(f"const real {pre}_scale_{ch} = {amp} * {k[0]};")
-                a = f"{pre}_scale_{ch}"
+                a = f"{pre}_scale{em.tag(ch)}"
+                em.channel_line(f"const real {a} = {amp} * {k[0]};")
             else:
                 a = amp
             rest = ([S] if S else []) + [v for v, _ in own]
             em.add(ch, " * ".join([a] + rest))
-            em.add_jac(ch, self.slot_name(self.amplitude.name, ch), " * ".join(k + rest) or "(real_v)1")
+            em.add_jac(ch, amp_of, " * ".join(k + rest) or "(real_v)1")
             for name, dn in dS.items():
-                em.add_jac(ch, name, " * ".join([a, dn] + [v for v, _ in own]))
+                em.add_jac(ch, lambda c, name=name: name, " * ".join([a, dn] + [v for v, _ in own]))
             for i, (_, d) in enumerate(own):
                 others = ([S] if S else []) + [v for j, (v, _) in enumerate(own) if j != i]
-                for name, dv in d.items():
-                    em.add_jac(ch, name, " * ".join([a] + others + [dv]))
+                for name_of, dv in d:
+                    em.add_jac(ch, name_of, " * ".join([a] + others + [dv]))
 
-    def _emit_term(self, em, fac: Factor):
-        """Emit one factor's call; returns (C value name, {slot name: C derivative name})."""
+    def _emit_term(self, em, ch, factor_of):
+        """Emit one factor's call, ``factor_of(ch)``, shared (``ch`` None and a factor of no
+        channel) or channel ``ch``'s: (C value name, [(channel -> slot name, C derivative name)])."""
+        fac = factor_of(0 if ch == LOOP else ch)
         term = fac.term
-        tag = "" if fac.channel is None else f"_{fac.channel}"
+        tag = "" if fac.channel is None else em.tag(ch)
+        line = em.line if fac.channel is None else em.channel_line
         base = f"{self.prefix}_{term.kind}{tag}"
-        names = self._inputs(term, fac.channel)
-        ins = [c_name(names[p]) for p in term.inputs]
+        def name_of(p):
+            return lambda c: self._inputs(term, factor_of(c).channel)[p]
+        ins = [em.param(ch, name_of(p)) for p in term.inputs]
         ins += ["K_" + f"{self.prefix}.{term.kind}.{k}".replace(".", "_") for k in term.const_names]
-        outs = {names[p]: f"{base}_d{p}" for p in term.inputs}
+        outs = [(name_of(p), f"{base}_d{p}") for p in term.inputs]
         if outs:
-            em.line(f"real_v {', '.join(outs.values())};")
-        arg = "&c" if fac.arg is None else f"({fac.arg.c})"
-        em.line(f"const real_v {base} = {term.cfunc}({', '.join([arg, *ins, *(f'&{d}' for d in outs.values())])});")
+            line(f"real_v {', '.join(d for _, d in outs)};")
+        arg = "&c" if fac.arg is None else \
+            f"({em.known(ch, lambda c: factor_of(c).arg, f'{self.prefix}_{term.kind}_arg')})"
+        line(f"const real_v {base} = {term.cfunc}({', '.join([arg, *ins, *(f'&{d}' for _, d in outs)])});")
         return base, outs
