@@ -83,10 +83,13 @@ def child(spawned: float, out_json: str, argv: list[str]) -> None:
     timed(forms_mod, "assess", "assessment of the chosen fits")
     timed(runner.Runner, "finish", "report pages and summary")
     timed(fit_mod, "global_search", "global search")
-    timed(fit_mod.Fitter, "run", "fits")
+    timed(fit_mod.Fitter, "begin", "fits")          # Fitter.run and the choice of forms call both
+    timed(fit_mod.Fitter, "complete", "fits")
     main(argv)
     end = time.time()
     clock["local search"] = clock.pop("fits", 0.0) - clock.get("global search", 0.0)
+    if os.environ.get("BRDFCL_STAGES_PRINT"):
+        print(json.dumps(clock), file=sys.stderr)
     stages = {"interpreter start": t_main - spawned, "imports": t_imported - t_main,
               "start-up to the first kernel launch": marks.get("first launch", end) - spawned, **clock,
               "total (whole process)": end - spawned}

@@ -295,3 +295,28 @@ def test_registry_and_find_measurements(tmp_path, monkeypatch):
         find_measurements(tmp_path / "nope")
     with pytest.raises(DataError, match="not a folder"):
         find_measurements(tmp_path / "a.brdf")
+
+
+def test_a_batch_is_read_into_its_stacked_arrays_without_the_one_that_fails():
+    """Measurements of one layout are read straight into one array per index set; one that
+    cannot be read is told to on_error and its row left out, the others in order."""
+    from types import SimpleNamespace
+
+    from brdfcl.device.cellsets import read_stacked
+
+    def fake(k):
+        def values_at(indices, outs):
+            if k == 1:
+                raise OSError("truncated")
+            for idx, out in zip(indices, outs):
+                out[:] = k * 1000 + np.asarray(idx)[None, :] + np.arange(3)[:, None] * 0.5
+        return SimpleNamespace(n_channels=3, values_at=values_at, name=f"m{k}")
+
+    ms = [fake(k) for k in range(4)]
+    idx = [np.arange(10), np.arange(0, 10, 3)]
+    told = []
+    kept, stacked = read_stacked(ms, idx, np.float32, lambda m, e: told.append((m.name, str(e))))
+    assert kept == [0, 2, 3] and told == [("m1", "truncated")]
+    assert [s.shape for s in stacked] == [(3, 3, 10), (3, 3, 4)]
+    for row, k in enumerate(kept):
+        np.testing.assert_array_equal(stacked[1][row, 2], k * 1000 + idx[1] + 1.0)

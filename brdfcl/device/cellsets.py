@@ -105,15 +105,19 @@ def select_cells(cutoff_deg=DEFAULT_CUTOFF_DEG, stride=1, offset=0):
 
 def read_values(measurements: Sequence[Measurement], indices: Callable[[int], Sequence[np.ndarray]],
                 dtype=np.float32, on_error: Callable[[Measurement, Exception], None] | None = None,
-                workers: int = READ_WORKERS) -> tuple[list[int], list[list[np.ndarray]]]:
+                workers: int = READ_WORKERS, into: Callable[[int], list[np.ndarray]] | None = None,
+                ) -> tuple[list[int], list[list[np.ndarray]]]:
     """Each measurement's values at each of its index sets (``indices(k)`` for measurement k):
     (the positions of those read, [[(C, n_i) per index set] per one read]).  Files are read by
     ``workers`` threads (reading and gathering release the GIL, so the cores read in parallel).
-    One that raises is told to ``on_error(measurement, exc)`` and left out (re-raised if None)."""
+    One that raises is told to ``on_error(measurement, exc)`` and left out (re-raised if None).
+    ``into(k)``: the arrays measurement k's values are written to (rows of a batch's stacked
+    arrays, which then need no copy)."""
     def one(k):
         m = measurements[k]
         try:
-            outs = [np.empty((m.n_channels, np.size(i)), dtype) for i in indices(k)]
+            outs = into(k) if into is not None else \
+                [np.empty((m.n_channels, np.size(i)), dtype) for i in indices(k)]
             m.values_at(indices(k), outs)
             return outs, None
         except Exception as e:
@@ -136,11 +140,21 @@ def extract(tables, indices, dtype=np.float32, on_error=None, workers=READ_WORKE
     """The values of measurements sharing one layout (MERL tables) at each index set:
     (names, [(n_mat, C, n_i)]); one that cannot be read is told to ``on_error`` and left out."""
     items = list(tables)
-    kept, values = read_values(items, lambda k: indices, dtype, on_error, workers)
-    names = [items[k].name for k in kept]
-    out = [np.stack([v[j] for v in values]) if values else np.empty((0, 3, np.size(idx)), dtype)
-           for j, idx in enumerate(indices)]
-    return names, out
+    kept, stacked = read_stacked(items, indices, dtype, on_error, workers)
+    return [items[k].name for k in kept], stacked
+
+
+def read_stacked(measurements: Sequence[Measurement], indices: Sequence[np.ndarray], dtype=np.float32,
+                 on_error=None, workers=READ_WORKERS) -> tuple[list[int], list[np.ndarray]]:
+    """`read_values` for measurements sharing one layout, each read straight into its row of one
+    array per index set: (the positions of those read, [(n_read, C, n_i)])."""
+    n_ch = measurements[0].n_channels if measurements else 3
+    stacked = [np.empty((len(measurements), n_ch, np.size(i)), dtype) for i in indices]
+    kept, _ = read_values(measurements, lambda k: indices, dtype, on_error, workers,
+                          into=lambda k: [s[k] for s in stacked])
+    if len(kept) < len(measurements):
+        stacked = [s[kept] for s in stacked]
+    return kept, stacked
 
 
 def _pad(n: int, pad_to: int) -> int:

@@ -19,7 +19,7 @@ from brdfcl._words import count
 from brdfcl.data.geometry import DEFAULT_CUTOFF_DEG, TABLE, table_geometry
 from brdfcl.data.measurement import Layout
 from brdfcl.device import buildlog, selftest, width
-from brdfcl.device.cellsets import CellSet, Place, build_cellset, extract, read_values, select_cells
+from brdfcl.device.cellsets import CellSet, Place, build_cellset, extract, read_stacked, read_values, select_cells
 from brdfcl.device.platforms import has_fp64, is_cpu, pick_device, short_name
 from brdfcl.device.program import (
     KERNELS,
@@ -38,7 +38,7 @@ from brdfcl.model.compose import Model
 from brdfcl.model.metrics import METRICS
 
 __all__ = ["CellSet", "Engine", "Place", "build_cellset", "context_for", "default_options", "extract",
-           "read_values", "select_cells"]
+           "read_stacked", "read_values", "select_cells"]
 
 _log = logging.getLogger("brdfcl")
 _CONTEXTS: dict = {}

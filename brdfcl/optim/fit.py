@@ -24,7 +24,7 @@ import numpy as np
 from brdfcl._words import count
 from brdfcl.data.geometry import coarse_cells
 from brdfcl.data.measurement import Measurement
-from brdfcl.device.engine import Engine, Place, extract, read_values, select_cells
+from brdfcl.device.engine import Engine, Place, extract, read_stacked, read_values, select_cells
 from brdfcl.model.compose import Model
 from brdfcl.optim.assessment import assess, bounds_hit, evaluate
 from brdfcl.optim.lm import LMOptions
@@ -116,16 +116,18 @@ class Fitter:
             places = [common] * len(ms)
         else:
             places = [self.places(m, dense) for m in ms]
-        read, values = read_values(ms, lambda k: [p.index for p in places[k]], self.engine.dtype, on_error)
+        if shared:
+            read, stacked = read_stacked(ms, [p.index for p in common], self.engine.dtype, on_error)
+            values = [[s[i] for s in stacked] for i in range(len(read))]
+        else:
+            read, values = read_values(ms, lambda k: [p.index for p in places[k]], self.engine.dtype, on_error)
         names = [ms[k].name for k in read]
         places = [places[k] for k in read]
         n_sets = len(places[0]) if places else 1
 
         def stage(j: int) -> tuple:
             if shared:
-                stacked = (np.stack([v[j] for v in values]) if values
-                           else np.empty((0, self.model.n_channels, common[j].index.size), self.engine.dtype))
-                return [common[j]], stacked
+                return [common[j]], stacked[j]
             return [p[j] for p in places], [v[j] for v in values]
 
         cut = self.opts.cutoff_deg
