@@ -4,6 +4,7 @@ import os
 
 import pytest
 
+from brdfcl.report.view import drawer
 from brdfcl.report.view.drawer import Drawers, InProcess
 
 
@@ -42,3 +43,14 @@ def test_a_call_goes_to_the_worker_named_and_workers_run_at_their_niceness():
         assert pids[0] == pids[2] != pids[1] == pids[3]
         assert pool.size == 2
         assert pool.submit(os.nice, 0).result(timeout=60) == os.nice(0) + 3
+
+
+@pytest.mark.skipif(not hasattr(os, "SCHED_IDLE"), reason="SCHED_IDLE is Linux's")
+def test_idle_workers_run_only_in_idle_time_until_woken():
+    with Drawers(1, nice=1, idle=True) as pool:
+        may = pool.submit(drawer._may_leave_idle).result(timeout=60)
+        expect = os.SCHED_IDLE if may else os.SCHED_OTHER
+        assert pool.submit(os.sched_getscheduler, 0).result(timeout=60) == expect
+        pool.wake()
+        assert pool.submit(os.sched_getscheduler, 0).result(timeout=60) == os.SCHED_OTHER
+        assert pool.submit(os.nice, 0).result(timeout=60) == os.nice(0) + 1

@@ -55,12 +55,16 @@ class Drawers:
     """``n`` worker processes; `submit` sends a call to worker ``worker`` or, by default, the one
     with the fewest pending, and returns a Future of its result (the worker's exception
     re-raised; a worker that died: a RuntimeError of one line).  ``nice``: the workers' niceness
-    increment (os.nice), for workers that should take only CPU time nothing else wants."""
+    increment (os.nice); ``idle``: the workers also in Linux's SCHED_IDLE class, which runs them
+    only on a core nothing else wants (a nice process still takes a share of a busy core, which
+    stalls a parallel kernel's slowest thread), where they may leave it again (`wake`); both for
+    workers beside other work."""
 
-    def __init__(self, n: int, nice: int = 0):
+    def __init__(self, n: int, nice: int = 0, idle: bool = False):
         env = dict(os.environ, PYTHONUNBUFFERED="1")
-        self._procs = [subprocess.Popen([sys.executable, "-m", __name__, str(int(nice))], stdin=subprocess.PIPE,
-                                        stdout=subprocess.PIPE, env=env) for _ in range(n)]
+        args = [sys.executable, "-m", __name__, str(int(nice))] + (["idle"] if idle else [])
+        self._procs = [subprocess.Popen(args, stdin=subprocess.PIPE, stdout=subprocess.PIPE, env=env)
+                       for _ in range(n)]
         self._pending: list[queue.Queue] = [queue.Queue() for _ in self._procs]
         self._counts = [0] * n
         self._lock = threading.Lock()
@@ -99,6 +103,12 @@ class Drawers:
             pass                          # the reader reports the dead worker on this future
         return f
 
+    def wake(self) -> None:
+        """Every worker back in the normal scheduling class (from SCHED_IDLE; its niceness kept):
+        once nothing else runs beside them, other programs must not starve what is left."""
+        for k in range(self.size):
+            self.submit(_normal_class, worker=k)
+
     def __enter__(self):
         return self
 
@@ -117,10 +127,33 @@ class Drawers:
         return False
 
 
+def _may_leave_idle() -> bool:
+    """Whether this process could return from SCHED_IDLE to the normal class: Linux allows it to
+    root, or where RLIMIT_NICE admits the process's niceness (sched(7))."""
+    import resource
+    if os.geteuid() == 0:
+        return True
+    soft = resource.getrlimit(resource.RLIMIT_NICE)[0]
+    return soft == resource.RLIM_INFINITY or 20 - os.nice(0) <= soft
+
+
+def _normal_class() -> None:
+    if hasattr(os, "SCHED_IDLE") and os.sched_getscheduler(0) == os.SCHED_IDLE:
+        try:
+            os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+        except OSError:
+            pass
+
+
 def main() -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)     # Ctrl-C is the caller's to handle
     if len(sys.argv) > 1 and int(sys.argv[1]):
         os.nice(int(sys.argv[1]))
+    if "idle" in sys.argv[2:] and hasattr(os, "SCHED_IDLE") and _may_leave_idle():
+        try:
+            os.sched_setscheduler(0, os.SCHED_IDLE, os.sched_param(0))
+        except OSError:
+            pass                          # not allowed here: the niceness alone
     stdin, stdout = sys.stdin.buffer, sys.stdout.buffer
     sys.stdout = sys.stderr               # a stray print must not break the answers
     while True:

@@ -35,7 +35,7 @@ TURNTABLE_DEG = tuple(range(0, 180, 15))    # the live view's measured spheres: 
 PLAN = (REPORT_LIGHTS, 128, 64, TURNTABLE_DEG, 64)
 PER_WORKER = 12                   # materials a worker process must have to be worth starting
 DRAW_PROCESSES = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
-BESIDE_NICE = 10                  # the workers beside the fits: their niceness increment
+BESIDE_NICE = 10                  # the workers beside the fits: their niceness increment (and SCHED_IDLE)
 BESIDE_KEPT = 100                 # measured sides a worker keeps at most (~2 MB each)
 _MEASURED: dict = {}              # in a worker: (table, mtime) -> its measured side, made beside the fits
 
@@ -48,7 +48,7 @@ class Beside:
 
     def __init__(self, rep, tables: dict, read_cells):
         todo = [(n, p) for n, p in tables.items() if os.path.exists(p) and not _measured_current(rep / n, p)]
-        self.pool = Drawers(DRAW_PROCESSES, nice=BESIDE_NICE) \
+        self.pool = Drawers(DRAW_PROCESSES, nice=BESIDE_NICE, idle=True) \
             if len(todo) >= PER_WORKER * DRAW_PROCESSES and DRAW_PROCESSES > 1 else None
         self.worker: dict[str, int] = {}
         if self.pool is None:
@@ -90,6 +90,8 @@ def draw_images(rep, entries, read_cells, engine=None, beside: Beside | None = N
     placed = beside.worker if pool is not None and beside is not None else {}
     if beside is not None:
         beside.pool = None                            # ended here
+    if pool is not None:
+        pool.wake()                                   # the fits are done: the drawing is all there is
     if not todo:
         if pool is not None:
             pool.__exit__(None, None, None)
