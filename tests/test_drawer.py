@@ -54,3 +54,15 @@ def test_idle_workers_run_only_in_idle_time_until_woken():
         pool.wake()
         assert pool.submit(os.sched_getscheduler, 0).result(timeout=60) == os.SCHED_OTHER
         assert pool.submit(os.nice, 0).result(timeout=60) == os.nice(0) + 1
+
+
+def test_a_busy_worker_holds_neither_the_caller_nor_the_other_workers():
+    import time
+    with Drawers(2) as pool:
+        pool.submit(time.sleep, 2.0, worker=0)                   # busy for a while
+        t = time.monotonic()
+        big = pool.submit(len, b"x" * (8 << 20), worker=0)      # far more than a pipe holds
+        quick = pool.submit(os.path.basename, "/a/b", worker=1)
+        assert time.monotonic() - t < 1.0
+        assert quick.result(timeout=60) == "b" and time.monotonic() - t < 1.5
+        assert big.result(timeout=60) == 8 << 20

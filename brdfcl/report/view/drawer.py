@@ -66,11 +66,27 @@ class Drawers:
         self._procs = [subprocess.Popen(args, stdin=subprocess.PIPE, stdout=subprocess.PIPE, env=env)
                        for _ in range(n)]
         self._pending: list[queue.Queue] = [queue.Queue() for _ in self._procs]
+        self._outbox: list[queue.Queue] = [queue.Queue() for _ in self._procs]
         self._counts = [0] * n
         self._lock = threading.Lock()
         self._readers = [threading.Thread(target=self._read, args=(k,), daemon=True) for k in range(n)]
-        for t in self._readers:
+        # a call is sent by a thread of its worker: a full pipe (a busy worker) must not hold the
+        # caller while another worker waits for its next call
+        self._writers = [threading.Thread(target=self._write, args=(k,), daemon=True) for k in range(n)]
+        for t in self._readers + self._writers:
             t.start()
+
+    def _write(self, k):
+        stdin, outbox = self._procs[k].stdin, self._outbox[k]
+        while (call := outbox.get()) is not None:
+            try:
+                _send(stdin, call)
+            except OSError:
+                pass                      # the reader reports the dead worker on this call's future
+        try:
+            stdin.close()
+        except OSError:
+            pass
 
     def _read(self, k):
         proc, pending = self._procs[k], self._pending[k]
@@ -97,10 +113,7 @@ class Drawers:
             self._counts[k] += 1
         f: Future = Future()
         self._pending[k].put(f)
-        try:
-            _send(self._procs[k].stdin, (fn, args))
-        except OSError:
-            pass                          # the reader reports the dead worker on this future
+        self._outbox[k].put((fn, args))
         return f
 
     def wake(self) -> None:
@@ -113,16 +126,14 @@ class Drawers:
         return self
 
     def __exit__(self, kind, value, tb):
-        for proc, pending in zip(self._procs, self._pending):
+        for proc, pending, outbox in zip(self._procs, self._pending, self._outbox):
+            outbox.put(None)              # its input ends after what is queued
             pending.put(None)
-            try:
-                proc.stdin.close()
-            except OSError:
-                pass
             if kind is not None:          # interrupted or failed: what is queued is not wanted
                 proc.kill()
-        for proc, t in zip(self._procs, self._readers):
-            t.join()
+        for proc, w, r in zip(self._procs, self._writers, self._readers):
+            w.join()
+            r.join()
             proc.wait()
         return False
 

@@ -17,6 +17,7 @@ from __future__ import annotations
 import json
 import logging
 import os
+from concurrent.futures import as_completed
 from pathlib import Path
 
 from brdfcl.device.errors import DeviceError, ProgramError
@@ -68,22 +69,28 @@ def _key(e):
     return f"{e.model}|{sorted(e.params.items())}|{os.path.getmtime(e.table)}"
 
 
-def draw_images(rep, entries, read_cells, engine=None, beside: Beside | None = None) -> dict:
+def draw_images(rep, entries, read_cells, engine=None, beside: Beside | None = None, on_images=None) -> dict:
     """{name: images} of every entry with a measurement: kept in ``rep/NAME/`` when newer than
     its table and fit, else drawn, the fits of one model evaluated together (CHUNK at a time);
     ``read_cells(path, index)``: a table's BRDF (3, len(index)) at the views' cells (the MERL
     table's, brdfcl.data.geometry.table_values); ``beside``: the job's workers, holding measured
-    sides (they are ended here)."""
+    sides (they are ended here); ``on_images(name, images)``: called with each material's images
+    as they are ready (the drawn ones while the others are drawn)."""
     out: dict = {}
+
+    def ready(name, images):
+        out[name] = images
+        if on_images is not None:
+            on_images(name, images)
     todo: dict[str, list] = {}
     for e in entries:
         if e.table is None or not os.path.exists(e.table):
             continue
         stamp = _stamp(rep / e.name)
         if stamp.get("key") == _key(e):
-            out[e.name] = _existing(rep / e.name, e.name, stamp)
+            ready(e.name, _existing(rep / e.name, e.name, stamp))
         elif not e.tabulated:
-            out[e.name] = _sample_images(rep / e.name, e)
+            ready(e.name, _sample_images(rep / e.name, e))
         else:
             todo.setdefault(e.model, []).append(e)
     pool = beside.pool if beside is not None and beside.pool is not None else None
@@ -107,8 +114,10 @@ def draw_images(rep, entries, read_cells, engine=None, beside: Beside | None = N
                 fitted = evaluate([[e.params[n] for n in model.names] for e in part])
                 drawn += [pool.submit(_draw, rep, e.name, e.table, _key(e), spec, f, read_cells,
                                       worker=placed.get(e.name)) for e, f in zip(part, fitted)]
-        out.update(f.result() for f in drawn)
+        for f in as_completed(drawn):
+            ready(*f.result())
     return out
+
 
 
 def _pool(n):

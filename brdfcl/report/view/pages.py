@@ -109,11 +109,18 @@ def write_report(out, entries, read_cells, title="brdfcl fits", log=None, engine
     the float64 reference); ``beside``: the job's image workers (brdfcl.report.view.images.Beside)."""
     rep = Path(out) / "report"
     rep.mkdir(parents=True, exist_ok=True)
-    images = draw_images(rep, entries, read_cells, engine, beside)
-    for e in entries:
-        _write(rep / f"{e.name}.html", material_page(e, images.get(e.name, {}), rep))
+    by_name = {e.name: e for e in entries}
+    written: set[str] = set()
+
+    def page(name, images):
+        _write(rep / f"{name}.html", material_page(by_name[name], images, rep))
+        written.add(name)
         if log:
-            log(f"report: {e.name}")
+            log(f"report: {name}")
+    images = draw_images(rep, entries, read_cells, engine, beside, on_images=page)   # pages as images come
+    for e in entries:
+        if e.name not in written:
+            page(e.name, images.get(e.name, {}))
     _write(rep / "index.html", comparison_page(entries, title, rep))
     return rep / "index.html"
 

@@ -69,10 +69,19 @@ class Figure:
         for i, line in enumerate(self.title):
             out.append(f"<text x='{width / 2:.0f}' y='{16 + 16 * i}' text-anchor='middle' font-size='13'>"
                        f"{html.escape(line)}</text>")
-        for (r, c), p in sorted(self.panels.items()):
-            x0 = left + c * (pw + gap_x)
-            y0 = top + 14 + r * (ph + gap_y)
-            out += _panel(p, x0, y0, pw, ph)
+        placed = [(p, left + c * (pw + gap_x), top + 14 + r * (ph + gap_y))
+                  for (r, c), p in sorted(self.panels.items())]
+        xs, ys, oks, counts = [], [], [], []
+        for p, x0, y0 in placed:            # every line of the figure thinned together
+            px, py = _axes(p, x0, y0, pw, ph)
+            lines = [item for item in p.items if item[0] == "line"]
+            xs += [px(it[1]) for it in lines]
+            ys += [py(it[2]) for it in lines]
+            oks += [np.isfinite(it[2]) & (it[2] > 0) for it in lines]
+            counts.append(len(lines))
+        paths = iter(_line_paths(xs, ys, oks))
+        for (p, x0, y0), k in zip(placed, counts):
+            out += _panel(p, x0, y0, pw, ph, [next(paths) for _ in range(k)])
         out.append(f"<g transform='translate(0,{height - legend_h})'>")
         out += legend
         out.append("</g></svg>")
@@ -124,7 +133,8 @@ def _triangle(x, y, color):
             "stroke='black' stroke-width='0.5'/>")
 
 
-def _panel(p, x0, y0, w, h):
+def _axes(p, x0, y0, w, h):
+    """The panel's value-to-pixel maps (px, py) for its origin ``x0, y0`` and size ``w, h``."""
     (xa, xb), (ya, yb) = p.x_range, p.y_range
     la, lb = math.log10(ya), math.log10(yb)
 
@@ -135,7 +145,13 @@ def _panel(p, x0, y0, w, h):
         with np.errstate(divide="ignore", invalid="ignore"):
             ly = np.log10(np.asarray(y, float))
         return y0 + h - (np.clip(ly, la, lb) - la) / (lb - la) * h
+    return px, py
 
+
+def _panel(p, x0, y0, w, h, line_paths):
+    """The panel's elements; ``line_paths``: per line item, in order, its path data (`_line_paths`)."""
+    px, py = _axes(p, x0, y0, w, h)
+    la, lb = math.log10(p.y_range[0]), math.log10(p.y_range[1])
     out = [f"<text x='{x0 + w / 2:.0f}' y='{y0 - 6}' text-anchor='middle' font-size='12'>{html.escape(p.title)}</text>"]
     clip = f"c{x0}_{y0}"
     out.append(f"<clipPath id='{clip}'><rect x='{x0}' y='{y0}' width='{w}' height='{h}'/></clipPath>")
@@ -148,9 +164,7 @@ def _panel(p, x0, y0, w, h):
         out.append(f"<line x1='{x:.1f}' y1='{y0}' x2='{x:.1f}' y2='{y0 + h}' stroke='#e6e6e6'/>"
                    f"<text x='{x:.1f}' y='{y0 + h + 13}' text-anchor='middle' font-size='10'>{t:g}</text>")
     out.append(f"<g clip-path='url(#{clip})'>")
-    lines = [item for item in p.items if item[0] == "line"]
-    paths = iter(_line_paths([px(it[1]) for it in lines], [py(it[2]) for it in lines],
-                             [np.isfinite(it[2]) & (it[2] > 0) for it in lines]))
+    paths = iter(line_paths)
     lights = []
     for item in p.items:
         if item[0] == "line":               # in tenths of a pixel: integers are quick to write
@@ -182,8 +196,8 @@ def _panel(p, x0, y0, w, h):
 
 def _line_paths(xs, ys, oks):
     """Per line (pixel coordinates ``xs``, ``ys`` and where valid, ``oks``): the SVG path data of
-    each run of two or more valid points, thinned (see TOLERANCE_PX); every line of a panel
-    thinned and written together."""
+    each run of two or more valid points, thinned (see TOLERANCE_PX); every line given thinned and
+    written together (a figure's: numpy's cost is per call)."""
     runs, first = [], 0
     for ok in oks:
         edges = np.flatnonzero(np.diff(np.concatenate([[0], ok.astype(np.int8), [0]]))) + first
