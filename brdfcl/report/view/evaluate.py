@@ -2,7 +2,8 @@
 
 With a compiled Engine of the model the values come from its ``predict`` kernel, every material
 of the model in one launch over the plan's direction pairs and environment cells (float32, as
-the fit itself evaluates); without one, from the model's float64 reference (brdfcl.model).
+the fit itself evaluates, and sent on so); without one, from the model's float64 reference
+(brdfcl.model).
 The lobes one by one are evaluated on the in-plane slices only, where the report draws them.
 """
 from __future__ import annotations
@@ -20,11 +21,17 @@ CHUNK = 16                        # materials per launch: ~3 MB of results each
 @dataclass
 class Fitted:
     """One material's fitted values: at the plan's ``cells`` (3, n), at its ``env_cells``
-    (3, m), and per lobe prefix at the in-plane slices (3, k)."""
+    (3, m), and per lobe prefix at the in-plane slices (3, k); in float32 from the engine (half
+    the bytes to send to an image worker), float64 from the reference."""
 
     points: np.ndarray
     env: np.ndarray
     lobes: dict
+
+    def float64(self) -> Fitted:
+        """The same values in float64, as the images are computed."""
+        return Fitted(self.points.astype(np.float64), self.env.astype(np.float64),
+                      {k: v.astype(np.float64) for k, v in self.lobes.items()})
 
 
 def _concat(parts):
@@ -57,7 +64,7 @@ class Evaluator:
         values = np.atleast_2d(np.asarray(values, dtype=np.float64))
         if self.engine is not None:
             return np.concatenate([self.engine.predict(self._sets[which], values[s:s + CHUNK], 0)
-                                   for s in range(0, len(values), CHUNK)]).astype(np.float64)
+                                   for s in range(0, len(values), CHUNK)])
         cells = (self.all, self.in_plane)[which]
         return np.stack([self.model.reference(cells, v, jacobian=False) for v in values])
 
