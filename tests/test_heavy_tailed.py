@@ -180,3 +180,48 @@ def test_model_strings():
     assert Model("abc").lobes[0].shadowing.name == "smith_abc"          # smith by default
     assert Model("gtr:smith-hc:none").lobes[0].shadowing.name == "smith_gtr_hc"
     assert Model(Model("abc:smith-hc:conductor").spec).spec == "abc:smith-hc:conductor"
+
+
+@pytest.mark.parametrize("series, lo, hi", [("smith_gtr", (1e-3, 1.05), (1.0, 4.0)),
+                                            ("smith_abc", (0.1, 0.25), (1e5, 8.0))])
+def test_series_coefficients_kept_are_those_computed_alone(series, lo, hi):
+    """A series Lambda's host constants are the same whether a parameter vector's coefficients are
+    computed now, on their own, or taken from those it kept (repeated rows, several calls, its
+    bound passed), in the shape of the inputs."""
+    from brdfcl.model.terms.shadowing import smith
+    from brdfcl.model.terms.shadowing.smith_abc import LAMBDA_ABC
+    from brdfcl.model.terms.shadowing.smith_gtr import LAMBDA_GTR
+    lam = {"smith_gtr": LAMBDA_GTR, "smith_abc": LAMBDA_ABC}[series]
+    rng = np.random.default_rng(3)
+    a, b = rng.uniform(lo[0], hi[0], 40), rng.uniform(lo[1], hi[1], 40)
+    a[::5], b[::5] = a[1], b[1]                       # repeated rows within one call
+
+    def alone(i):
+        value, deriv = lam.rule.reference(lam._nodes, **{lam.inputs[0]: np.array([[a[i]]]),
+                                                         lam.inputs[1]: np.array([[b[i]]])})
+        coef = (smith._COS * value) @ smith._TO_COEF.T
+        return coef[0], {p: ((smith._COS * g) @ smith._TO_COEF.T)[0] for p, g in deriv.items()}
+    lam._memo.clear()
+    first = lam.host_consts(**{lam.inputs[0]: a.reshape(8, 5), lam.inputs[1]: b.reshape(8, 5)})
+    again = lam.host_consts(**{lam.inputs[0]: a[::-1], lam.inputs[1]: b[::-1]})
+    scalar = lam.host_consts(**{lam.inputs[0]: a[7], lam.inputs[1]: b[7]})
+    assert first[0]["c0"].shape == (8, 5) and again[0]["c0"].shape == (40,) and scalar[0]["c0"].shape == ()
+    for i in (0, 1, 7, 13, 39):
+        coef, dcoef = alone(i)
+        for k, c in enumerate(lam.host):
+            np.testing.assert_allclose(first[0][c].ravel()[i], coef[k], rtol=1e-9, atol=1e-12)
+            np.testing.assert_array_equal(again[0][c][39 - i], first[0][c].ravel()[i])
+            for p in lam.inputs:
+                np.testing.assert_allclose(first[1][c][p].ravel()[i], dcoef[p][k], rtol=1e-9, atol=1e-12)
+                np.testing.assert_array_equal(again[1][c][p][39 - i], first[1][c][p].ravel()[i])
+    np.testing.assert_array_equal(scalar[0]["c3"], first[0]["c3"].ravel()[7])
+    assert len(lam._memo) == len(set(zip(a, b)))
+    keep = smith.MEMO
+    try:
+        smith.MEMO = 16
+        many = rng.uniform(lo[0], hi[0], 50), rng.uniform(lo[1], hi[1], 50)
+        out = lam.host_consts(**dict(zip(lam.inputs, many)))
+        assert len(lam._memo) <= 16 and np.isfinite(out[0]["c0"]).all() and out[0]["c0"].shape == (50,)
+    finally:
+        smith.MEMO = keep
+        lam._memo.clear()

@@ -31,6 +31,7 @@ P(t) = alpha^2 / (alpha^2 + t^2) gives its closed form back, (sqrt(1 + alpha^2 t
 """
 from __future__ import annotations
 
+import itertools
 from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
@@ -108,6 +109,8 @@ SERIES_FROM_DEG = 88.0
 """The series interpolates cos theta over [cos SERIES_FROM_DEG, 1]; beyond, it extrapolates."""
 HOST_NODES = 24
 """Nodes of the rule the host evaluates at the series' nodes (``lambda_from_density``)."""
+MEMO = 1 << 15
+"""Parameter vectors whose coefficients a series Lambda keeps (``SeriesLambda.host_consts``)."""
 
 _COS_LO = float(np.cos(np.radians(SERIES_FROM_DEG)))
 _X = np.cos(np.pi * (np.arange(SERIES_TERMS) + 0.5) / SERIES_TERMS)        # Chebyshev nodes in x
@@ -153,16 +156,45 @@ class SeriesLambda:
         self.rule = Term("shadowing", f"{name}_rule", (), lambda **p: correction(outgoing(), HOST_NODES, **p),
                          uses=self.inputs, origin=origin)
         self._nodes = _Nodes(_COS, _COS, (1.0 - _COS ** 2) / _COS ** 2)
+        self._memo: dict[bytes, np.ndarray] = {}
 
     def host_consts(self, **inputs):
         """({c_k: value}, {c_k: {input: derivative}}), float64, for inputs of any (equal) shape
-        (c_k: the coefficient of x^k)."""
-        at = {k: np.asarray(v, dtype=np.float64)[..., None] for k, v in inputs.items()}
+        (c_k: the coefficient of x^k).
+
+        The rule is most of a launch's host time for these models, and a fit asks again for many
+        parameter vectors it has had (a search's optima ranked on other cells, a preview's result
+        on the full table, the assessment and the report of the final fits): each vector's
+        coefficients are kept (`MEMO` at most, the oldest dropped first) and computed once."""
+        at = np.broadcast_arrays(*(np.asarray(inputs[k], dtype=np.float64) for k in self.inputs))
+        shape = at[0].shape
+        rows = np.stack([a.ravel() for a in at], axis=1)
+        keys = [r.tobytes() for r in rows]
+        memo = self._memo
+        new: dict[bytes, int] = {}
+        for i, k in enumerate(keys):
+            if k not in memo and k not in new:
+                new[k] = i
+        made = dict(zip(new, self._coefficients(rows[list(new.values())]))) if new else {}
+        table = np.stack([memo[k] if k in memo else made[k] for k in keys])
+        table = table.reshape(*shape, 1 + len(self.inputs), SERIES_TERMS)
+        memo.update(made)
+        if len(memo) > MEMO:
+            for k in list(itertools.islice(memo, len(memo) - MEMO // 2)):
+                del memo[k]
+        return ({c: table[..., 0, k] for k, c in enumerate(self.host)},
+                {c: {p: table[..., 1 + j, k] for j, p in enumerate(self.inputs)} for k, c in enumerate(self.host)})
+
+    def __getstate__(self):
+        return {**self.__dict__, "_memo": {}}          # what it keeps stays in its process
+
+    def _coefficients(self, rows):
+        """(m, 1 + inputs, SERIES_TERMS): the x^k coefficients and their derivatives by each input
+        at the parameter rows (m, inputs), from the host's rule."""
+        at = {k: np.ascontiguousarray(rows[:, j])[:, None] for j, k in enumerate(self.inputs)}
         value, deriv = self.rule.reference(self._nodes, **at)
-        coef = (_COS * value) @ _TO_COEF.T
-        dcoef = {p: (_COS * g) @ _TO_COEF.T for p, g in deriv.items()}
-        return ({c: coef[..., k] for k, c in enumerate(self.host)},
-                {c: {p: d[..., k] for p, d in dcoef.items()} for k, c in enumerate(self.host)})
+        return np.stack([(_COS * np.broadcast_to(v, (rows.shape[0], SERIES_TERMS))) @ _TO_COEF.T
+                         for v in (value, *(deriv[p] for p in self.inputs))], axis=1)
 
     def __call__(self, d: Direction, **p):
         """Lambda in the direction ``d``: ``p`` holds the inputs and the coefficients c_k."""
