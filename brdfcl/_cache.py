@@ -91,10 +91,10 @@ def _prune(path: Path, pattern: str, keep: int) -> None:
 KEEP_ARRAYS = 4                   # generated_arrays: the newest files kept of one kind
 
 
-def generated_arrays(kind: str, key: str, make) -> dict:
+def generated_arrays(kind: str, key: str, make, keep: int = KEEP_ARRAYS) -> dict:
     """Arrays that depend only on the code, made once per machine: ``generated`` for a dict of
     numpy arrays, kept as ``generated/KIND/KEY.npz`` (no pickled objects).  They can be large:
-    writing one removes all but the KEEP_ARRAYS newest of its kind (those of older code)."""
+    writing one removes all but the ``keep`` newest of its kind (those of older code)."""
     import numpy as np
     path = cache_dir() / "generated" / kind / f"{key}.npz"
     try:
@@ -108,7 +108,7 @@ def generated_arrays(kind: str, key: str, make) -> dict:
         tmp = path.with_name(f".{path.name}.tmp{os.getpid()}.npz")
         np.savez(tmp, **arrays)
         os.replace(tmp, path)
-        _prune(path, "*.npz", KEEP_ARRAYS)
+        _prune(path, "*.npz", keep)
     except OSError:
         pass
     return arrays

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import nlopt
 import numpy as np
 
+from brdfcl.data.sobol import sobol_points
 from brdfcl.optim.lockstep import Problem, run_lockstep
 from brdfcl.optim.objective import Objective, Target
 from brdfcl.optim.options import FitOptions
@@ -70,8 +71,7 @@ def _lds_starts(objective: Objective, target: Target, n: int, options: FitOption
     """The defaults and the best ``n_starts`` Sobol candidates per material: ([(material, x)],
     candidates evaluated per material)."""
     sp = objective.spaces
-    from scipy.stats import qmc  # here: importing scipy.stats costs every start-up 0.3 s
-    sob = qmc.Sobol(objective.model.n_free, scramble=True, seed=options.seed).random(options.n_candidates)
+    sob = sobol_points(objective.model.n_free, options.n_candidates, options.seed)
     slo, shi = sp.search_box
     cand = np.vstack([sp.default_x(1), slo + sob * (shi - slo)])
     nc = cand.shape[0]

@@ -40,6 +40,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
+from brdfcl.data.sobol import sobol_points
 from brdfcl.model.compose import Model
 from brdfcl.model.lobes import REGISTRY
 from brdfcl.model.lobes.cells import Cells
@@ -181,8 +182,7 @@ class Sampler:
 
     def _weigh(self, comps, n):
         """Weights from each component's lobe albedo (mean over channels and 3 incidences)."""
-        from scipy.stats import qmc
-        u = qmc.Sobol(2, scramble=True, seed=1).random(n)
+        u = sobol_points(2, n, 1)
         albedo = []
         for c in comps:
             m = self.model.submodel(self.model.lobes_with_role("diffuse") if c.kind == "cosine" else
