@@ -19,7 +19,7 @@ from __future__ import annotations
 import html
 import json
 import os
-from functools import lru_cache
+from functools import cache
 from pathlib import Path
 
 from brdfcl._words import count
@@ -39,7 +39,7 @@ canvas#brdfcl-slice{width:400px;height:256px;background:#fff;border:1px solid #d
 .brdfcl-controls{font-size:13px}details{margin:.4em 0}"""
 
 
-@lru_cache(maxsize=1)
+@cache
 def _asset(name: str) -> str:
     return (Path(__file__).parent / name).read_text(encoding="utf-8")
 

@@ -22,26 +22,39 @@ OPTION_COLUMNS = ["options", "real", "cutoff_deg", "fixed", "seed", "ct_peak", "
                   "select_lobes", "brdfcl_version"]
 
 
-def write_summary(out_dir: str | Path, cache: dict | None = None) -> Path:
-    """summary.csv from every NAME.json in out_dir; returns its path.  ``cache``: see read_results."""
+def write_summary(out_dir: str | Path, cache: dict | None = None, rows: dict | None = None) -> Path:
+    """summary.csv from every NAME.json in out_dir; returns its path.  ``cache``: see read_results;
+    ``rows``: a dict kept between calls, each document's cells made once (a folder rewritten after
+    every fit of a batch would otherwise format every row again each time)."""
     docs = read_results(out_dir, cache)
+    rows = {} if rows is None else rows
     pnames: list[str] = []
     for d in docs:
         pnames += [k for k in d["params"] if k not in pnames]
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(SUMMARY_COLUMNS + OPTION_COLUMNS + pnames)
+    kept = {}
     for d in docs:
-        e = d["errors"]
-        row = [d["material"], d["model"], d["metric"], f"{d['seconds']:.3f}", d["evaluations"],
-               f"{e['rmse_log']:.6g}", f"{e['rmse_l2']:.6g}", f"{e['rmse_cbrt']:.6g}",
-               f"{e['rel_rmse']:.6g}", d.get("message", d["status"])]
-        row += _option_cells(d)
-        row += [f"{d['params'][k]['value']:.8g}" if k in d["params"] else "" for k in pnames]
-        w.writerow(row)
+        made = rows.get(id(d))
+        if made is None or made[0] is not d:
+            made = (d, *_cells(d))
+        kept[id(d)] = made
+        w.writerow(made[1] + [made[2].get(k, "") for k in pnames])
+    rows.clear()
+    rows.update(kept)                   # the documents of this folder now (the objects held: ids stay theirs)
     path = Path(out_dir) / "summary.csv"
     atomic_write_text(path, buf.getvalue())
     return path
+
+
+def _cells(d: dict) -> tuple[list, dict]:
+    """A document's row: its fixed and option cells, and {parameter: cell}."""
+    e = d["errors"]
+    row = [d["material"], d["model"], d["metric"], f"{d['seconds']:.3f}", d["evaluations"],
+           f"{e['rmse_log']:.6g}", f"{e['rmse_l2']:.6g}", f"{e['rmse_cbrt']:.6g}",
+           f"{e['rel_rmse']:.6g}", d.get("message", d["status"])]
+    return row + _option_cells(d), {k: f"{v['value']:.8g}" for k, v in d["params"].items()}
 
 
 def _option_cells(doc: dict) -> list[str]:
@@ -63,12 +76,13 @@ class SummaryCsv(Writer):
 
     def __init__(self) -> None:
         self._read: dict[str, dict] = {}   # per job's folder: NAME.json files already read (read_results)
+        self._rows: dict[str, dict] = {}   # ... and their rows (write_summary)
 
     def applies_to(self, job: Job) -> bool:
         return job.kind == FIT
 
     def write(self, job: Job, item: Item) -> None:
-        write_summary(job.out, self._read.setdefault(str(job.out), {}))
+        write_summary(job.out, self._read.setdefault(str(job.out), {}), self._rows.setdefault(str(job.out), {}))
 
     def finish(self, job: Job, items: list[Item]) -> Path:
-        return write_summary(job.out, self._read.pop(str(job.out), None))
+        return write_summary(job.out, self._read.pop(str(job.out), None), self._rows.pop(str(job.out), None))
