@@ -38,35 +38,3 @@ def test_images_drawn_beside_the_fits_are_those_drawn_after(demo_db, tmp_path, t
     a, b = _files(tmp_path / "beside" / "report"), _files(tmp_path / "after" / "report")
     assert a.keys() == b.keys() and len(a) > 10 * len(NAMES)
     assert [k for k in a if a[k] != b[k]] == []
-
-
-def test_fitted_sides_drawn_as_fits_finish_are_not_drawn_again(demo_db, tmp_path, two_workers, monkeypatch):
-    """With CHUNK fits final, their fitted sides go to the workers at once (before the report is
-    written), and the report takes those drawings: each material drawn once, the same files."""
-    monkeypatch.setattr(images, "CHUNK", 2)
-    paths = [demo_db / f"{n}.binary" for n in NAMES]
-    submitted = []
-    real_fitted = images.Beside.fitted
-
-    def counted(self, entry, engine=None):
-        real_fitted(self, entry, engine)
-        submitted.append(sorted(self.drawing))
-    monkeypatch.setattr(images.Beside, "fitted", counted)
-    draws = []
-    real_submit = images.Drawers.submit
-
-    def submit(self, fn, *a, worker=None):
-        if fn is images._draw:
-            draws.append(a[1])
-        return real_submit(self, fn, *a, worker=worker)
-    monkeypatch.setattr(images.Drawers, "submit", submit)
-    early = fit_all(paths, tmp_path / "early", model="diffuse+diffraction+ggx", pages=True)
-    assert early.ok
-    assert [len(s) for s in submitted] == [0, 2, 2] and submitted[1] == submitted[2]     # the third at the end
-    assert sorted(draws) == sorted(NAMES)                                # each drawn once
-
-    monkeypatch.setattr(images.Beside, "fitted", lambda self, entry, engine=None: None)
-    late = fit_all(paths, tmp_path / "late", model="diffuse+diffraction+ggx", pages=True)
-    assert late.ok
-    a, b = _files(tmp_path / "early" / "report"), _files(tmp_path / "late" / "report")
-    assert a.keys() == b.keys() and [k for k in a if a[k] != b[k]] == []

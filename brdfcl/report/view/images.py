@@ -10,8 +10,7 @@ per core (brdfcl.report.view.drawer); scattered samples: the in-plane figure
 A fit job may start those processes when it starts (`Beside`): at a low priority, they read each
 table and draw what needs no fit (its measured spheres and turntable) in the CPU time the fits
 leave, and keep it; each material's fitted side then goes to the process holding its measured
-side, as soon as its fit is final (`Beside.fitted`: a batch's fits are drawn while the next batch
-fits) or, at the latest, when the report is written.
+side.
 """
 from __future__ import annotations
 
@@ -53,34 +52,11 @@ class Beside:
         self.pool = Drawers(DRAW_PROCESSES, nice=BESIDE_NICE, idle=True) \
             if len(todo) >= PER_WORKER * DRAW_PROCESSES and DRAW_PROCESSES > 1 else None
         self.worker: dict[str, int] = {}
-        self.rep, self.read_cells = rep, read_cells
-        self.drawing: dict[str, tuple] = {}       # name -> (its `_key`, the Future of its `_draw`)
-        self._waiting: dict[str, list] = {}       # model spec -> fitted entries not yet drawn
-        self._evaluators: dict[str, Evaluator] = {}
         if self.pool is None:
             return
         for i, (name, path) in enumerate(todo[:BESIDE_KEPT * self.pool.size]):
             self.worker[name] = i % self.pool.size
             self.pool.submit(_measure, rep, name, path, read_cells, worker=i % self.pool.size)
-
-    def fitted(self, entry, engine=None) -> None:
-        """A material whose fit is final (a brdfcl.report.view.pages.Entry): its fitted side drawn
-        now, beside the fits, by the worker holding its measured side; the fits of one model are
-        evaluated CHUNK at a time (``engine(spec)``: the run's compiled Engine, as `draw_images`)."""
-        if self.pool is None or entry.name not in self.worker or not entry.tabulated or entry.table is None:
-            return
-        group = self._waiting.setdefault(entry.model, [])
-        group.append(entry)
-        if len(group) >= CHUNK:
-            del self._waiting[entry.model]
-            plan = view_plan(*PLAN)
-            if entry.model not in self._evaluators:
-                model = Model(entry.model)
-                self._evaluators[entry.model] = Evaluator(plan, model, _engine(engine, model))
-            evaluate = self._evaluators[entry.model]
-            for e, f in zip(group, evaluate([[e.params[n] for n in evaluate.model.names] for e in group])):
-                self.drawing[e.name] = (_key(e), self.pool.submit(_draw, self.rep, e.name, e.table, _key(e), e.model,
-                                                                   f, self.read_cells, worker=self.worker[e.name]))
 
     def close(self) -> None:
         """End the workers (where `draw_images` did not take them)."""
@@ -106,18 +82,9 @@ def draw_images(rep, entries, read_cells, engine=None, beside: Beside | None = N
         out[name] = images
         if on_images is not None:
             on_images(name, images)
-    pool = beside.pool if beside is not None and beside.pool is not None else None
-    placed = beside.worker if pool is not None and beside is not None else {}
-    early = beside.drawing if pool is not None and beside is not None else {}
-    if beside is not None:
-        beside.pool = None                            # ended here
     todo: dict[str, list] = {}
-    drawn = []
     for e in entries:
         if e.table is None or not os.path.exists(e.table):
-            continue
-        if e.name in early and early[e.name][0] == _key(e):
-            drawn.append(early[e.name][1])            # drawn beside the fits, or being drawn
             continue
         stamp = _stamp(rep / e.name)
         if stamp.get("key") == _key(e):
@@ -126,14 +93,19 @@ def draw_images(rep, entries, read_cells, engine=None, beside: Beside | None = N
             ready(e.name, _sample_images(rep / e.name, e))
         else:
             todo.setdefault(e.model, []).append(e)
+    pool = beside.pool if beside is not None and beside.pool is not None else None
+    placed = beside.worker if pool is not None and beside is not None else {}
+    if beside is not None:
+        beside.pool = None                            # ended here
     if pool is not None:
         pool.wake()                                   # the fits are done: the drawing is all there is
-    if not todo and not drawn:
+    if not todo:
         if pool is not None:
             pool.__exit__(None, None, None)
         return out
     plan = view_plan(*PLAN)
     with pool or _pool(sum(len(g) for g in todo.values())) as pool:
+        drawn = []
         for spec, group in todo.items():
             model = Model(spec)
             evaluate = Evaluator(plan, model, _engine(engine, model))

@@ -1,6 +1,5 @@
 """OUT/report/: the run's report, a comparison page and a page per material
-(brdfcl.report.view.pages), written once when the run has completed; a fit job's images are
-drawn beside the fits, each material's fitted side as soon as its fit is final.
+(brdfcl.report.view.pages), written once when the run has completed.
 
 A fit job shows every material of its input that has a NAME.json in the output folder (those
 fitted now and those resumed); an analysis shows each analysed material's final fit with its
@@ -8,7 +7,6 @@ verdict and, where drawn, its analysis figures.
 """
 from __future__ import annotations
 
-from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -45,17 +43,6 @@ class ReportPages(Writer):
         from brdfcl.report.view.images import Beside
         tables = {n: p for n, p in job.tables.items() if _tabulated(p)}
         self._beside[job.out] = Beside(job.out / "report", tables, _read_cells)
-
-    def write(self, job: Job, item: Item) -> None:
-        """A fit job: the material's fitted images drawn now, beside the fits that go on (its
-        page is written with the others at the end)."""
-        beside = self._beside.get(job.out)
-        path = job.tables.get(item.name)
-        if beside is None or item.doc is None or path is None or item.name not in beside.worker:
-            return
-        from brdfcl.report.view.pages import Entry
-        e = Entry.from_document(item.doc, path, tabulated=True, truth=truth_of(path))
-        beside.fitted(replace(e, params={k: float(v) for k, v in e.params.items()}), job.engine)
 
     def finish(self, job: Job, items: list[Item]) -> Path | None:
         beside = self._beside.pop(job.out, None)
