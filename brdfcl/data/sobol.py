@@ -23,7 +23,4 @@ def sobol_points(d: int, n: int, seed: int) -> np.ndarray:
         from scipy.stats import qmc
         return {"points": qmc.Sobol(d, scramble=True, seed=seed).random(n)}
     key = f"d{int(d)}-n{int(n)}-seed{int(seed)}-scipy{scipy.__version__}"
-    points = generated_arrays("sobol", key, make, keep=KEEP)["points"]
-    if points.shape != (n, d):                        # a damaged file: made again
-        points = make()["points"]
-    return points
+    return generated_arrays("sobol", key, make, keep=KEEP)["points"]

@@ -75,14 +75,14 @@ class SummaryCsv(Writer):
     name = "summary"
 
     def __init__(self) -> None:
-        self._read: dict[str, dict] = {}   # per job's folder: NAME.json files already read (read_results)
-        self._rows: dict[str, dict] = {}   # ... and their rows (write_summary)
+        # per job's folder: the NAME.json files already read (read_results) and their rows (write_summary)
+        self._kept: dict[str, tuple[dict, dict]] = {}
 
     def applies_to(self, job: Job) -> bool:
         return job.kind == FIT
 
     def write(self, job: Job, item: Item) -> None:
-        write_summary(job.out, self._read.setdefault(str(job.out), {}), self._rows.setdefault(str(job.out), {}))
+        write_summary(job.out, *self._kept.setdefault(str(job.out), ({}, {})))
 
     def finish(self, job: Job, items: list[Item]) -> Path:
-        return write_summary(job.out, self._read.pop(str(job.out), None), self._rows.pop(str(job.out), None))
+        return write_summary(job.out, *self._kept.pop(str(job.out), (None, None)))
