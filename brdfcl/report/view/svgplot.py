@@ -71,15 +71,18 @@ class Figure:
                        f"{html.escape(line)}</text>")
         placed = [(p, left + c * (pw + gap_x), top + 14 + r * (ph + gap_y))
                   for (r, c), p in sorted(self.panels.items())]
-        xs, ys, oks, counts = [], [], [], []
-        for p, x0, y0 in placed:            # every line of the figure thinned together
-            px, py = _axes(p, x0, y0, pw, ph)
+        xs, ys, oks, lengths, counts = [], [], [], [], []
+        for p, x0, y0 in placed:            # every line of the figure mapped and thinned together
             lines = [item for item in p.items if item[0] == "line"]
-            xs += [px(it[1]) for it in lines]
-            ys += [py(it[2]) for it in lines]
-            oks += [np.isfinite(it[2]) & (it[2] > 0) for it in lines]
             counts.append(len(lines))
-        paths = iter(_line_paths(xs, ys, oks))
+            if lines:
+                px, py = _axes(p, x0, y0, pw, ph)
+                y = np.concatenate([it[2] for it in lines])
+                xs.append(px(np.concatenate([it[1] for it in lines])))
+                ys.append(py(y))
+                oks.append(np.isfinite(y) & (y > 0))
+                lengths += [it[1].size for it in lines]
+        paths = iter(_line_paths(xs, ys, oks, lengths))
         for (p, x0, y0), k in zip(placed, counts):
             out += _panel(p, x0, y0, pw, ph, [next(paths) for _ in range(k)])
         out.append(f"<g transform='translate(0,{height - legend_h})'>")
@@ -155,12 +158,11 @@ def _panel(p, x0, y0, w, h, line_paths):
     out = [f"<text x='{x0 + w / 2:.0f}' y='{y0 - 6}' text-anchor='middle' font-size='12'>{html.escape(p.title)}</text>"]
     clip = f"c{x0}_{y0}"
     out.append(f"<clipPath id='{clip}'><rect x='{x0}' y='{y0}' width='{w}' height='{h}'/></clipPath>")
-    for t in _y_ticks(la, lb):
-        y = float(py(t))
+    ticks = _y_ticks(la, lb)
+    for t, y in zip(ticks, py(np.array(ticks)).tolist()):
         out.append(f"<line x1='{x0}' y1='{y:.1f}' x2='{x0 + w}' y2='{y:.1f}' stroke='#e6e6e6'/>"
                    f"<text x='{x0 - 4}' y='{y + 4:.1f}' text-anchor='end' font-size='10'>{_tick_text(t)}</text>")
-    for t in p.xticks:
-        x = float(px(t))
+    for t, x in zip(p.xticks, px(np.array(p.xticks, float)).tolist()):
         out.append(f"<line x1='{x:.1f}' y1='{y0}' x2='{x:.1f}' y2='{y0 + h}' stroke='#e6e6e6'/>"
                    f"<text x='{x:.1f}' y='{y0 + h + 13}' text-anchor='middle' font-size='10'>{t:g}</text>")
     out.append(f"<g clip-path='url(#{clip})'>")
@@ -194,26 +196,36 @@ def _panel(p, x0, y0, w, h, line_paths):
     return out
 
 
-def _line_paths(xs, ys, oks):
-    """Per line (pixel coordinates ``xs``, ``ys`` and where valid, ``oks``): the SVG path data of
-    each run of two or more valid points, thinned (see TOLERANCE_PX); every line given thinned and
-    written together (a figure's: numpy's cost is per call)."""
-    runs, first = [], 0
-    for ok in oks:
-        edges = np.flatnonzero(np.diff(np.concatenate([[0], ok.astype(np.int8), [0]]))) + first
-        runs.append([(a, b) for a, b in zip(edges[::2], edges[1::2]) if b - a >= 2])
-        first += ok.size
-    flat = [r for line in runs for r in line]
-    if not flat:
-        return [[] for _ in oks]
-    x, y = np.concatenate(xs), np.concatenate(ys)
-    starts = np.array([a for a, _ in flat])
-    stops = np.array([b for _, b in flat])
+def _line_paths(xs, ys, oks, lengths):
+    """Per line (pixel coordinates and where valid: the concatenations of ``xs``, ``ys`` and
+    ``oks`` hold the lines end to end, ``lengths`` long): the SVG path data of each run of two or
+    more valid points, thinned (see TOLERANCE_PX); every line of a figure thinned and written
+    together (numpy's cost is per call)."""
+    if not lengths:
+        return []
+    x, y, ok = np.concatenate(xs), np.concatenate(ys), np.concatenate(oks)
+    ends = np.cumsum(lengths)
+    begins = ends - lengths
+    after = np.zeros(ok.size + 1, bool)         # ok[i - 1] within the line, at i
+    after[1:] = ok
+    after[begins] = False
+    before = np.zeros(ok.size, bool)            # ok[i + 1] within the line, at i
+    before[:-1] = ok[1:]
+    before[ends - 1] = False
+    starts = np.flatnonzero(ok & ~after[:-1])
+    stops = np.flatnonzero(ok & ~before) + 1
+    long = stops - starts >= 2
+    starts, stops = starts[long], stops[long]
+    line_of = np.searchsorted(ends, starts, side="right")
+    out: list[list[str]] = [[] for _ in lengths]
+    if not starts.size:
+        return out
     keep, run_of = _thin_runs(x, y, starts, stops)
     xy = np.rint(np.stack([x[keep], y[keep]], -1) * 10).astype(np.int64).ravel().tolist()
-    bounds = np.searchsorted(run_of, np.arange(len(flat) + 1)) * 2
-    text = iter("M" + " ".join(map(str, xy[a:b])) for a, b in zip(bounds[:-1], bounds[1:]))  # pairs after M
-    return [[next(text) for _ in line] for line in runs]
+    bounds = (np.searchsorted(run_of, np.arange(starts.size + 1)) * 2).tolist()
+    for line, a, b in zip(line_of.tolist(), bounds[:-1], bounds[1:]):
+        out[line].append("M" + " ".join(map(str, xy[a:b])))     # pairs after M
+    return out
 
 
 def _thin(x, y, passes=4):
