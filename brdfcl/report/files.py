@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import os
 import re
+import struct
+import zlib
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -51,6 +53,35 @@ def write_exr(path: str | os.PathLike, channels: dict[str, np.ndarray], compress
         with OpenEXR.File(hdr, data) as f:
             f.write(tmp)
         Path(tmp).replace(path)
+
+
+def png_bytes(rgb: np.ndarray, level: int = 1) -> bytes:
+    """An 8-bit RGB image (h, w, 3) as a PNG file's bytes: each row filtered with PNG's Sub
+    filter (every byte less the one a pixel to its left, modulo 256) and compressed by zlib at
+    ``level``; half of an encoder's time that tries every filter on every row, for a file a few
+    percent larger."""
+    rgb = np.ascontiguousarray(rgb, dtype=np.uint8)
+    h, w, channels = rgb.shape
+    if channels != 3:
+        raise ValueError(f"an RGB image has 3 channels, not {channels}")
+    rows = rgb.reshape(h, 3 * w)
+    data = np.empty((h, 3 * w + 1), np.uint8)
+    data[:, 0] = 1                                   # filter type: Sub
+    data[:, 1:4] = rows[:, :3]
+    np.subtract(rows[:, 3:], rows[:, :-3], out=data[:, 4:])    # uint8: modulo 256
+
+    def chunk(kind: bytes, body: bytes) -> bytes:
+        return struct.pack(">I", len(body)) + kind + body + struct.pack(">I", zlib.crc32(kind + body))
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 8, 2, 0, 0, 0))
+            + chunk(b"IDAT", zlib.compress(data.tobytes(), level)) + chunk(b"IEND", b""))
+
+
+def write_png(path: str | os.PathLike, rgb: np.ndarray) -> None:
+    """An 8-bit RGB image (h, w, 3) into a PNG file (`png_bytes`), atomically."""
+    tmp = f"{path}.tmp.png"
+    with writing(path):
+        Path(tmp).write_bytes(png_bytes(rgb))
+        os.replace(tmp, path)
 
 
 def remove_stale_temporaries(out_dir: str | os.PathLike) -> None:

@@ -18,7 +18,7 @@ from brdfcl.report.view.sphere import (
     DEFAULT_LIGHTS,
     ENV_SIZE,
     as_model,
-    exposure,
+    exposed,
     panels,
     write_png,
     write_sphere_images,
@@ -43,11 +43,13 @@ def curves(plan, measured, fitted: Fitted) -> dict:
 @dataclass
 class Measured:
     """A table's side of its images, which needs no fit: its values at the plan's points (3, n),
-    its sphere images ({label: radiance}) and the turntable files written."""
+    its sphere images ({label: radiance}), how their panels show them (sphere.exposed) and the
+    turntable files written."""
 
     at_points: np.ndarray
     images: dict
     files: list
+    shown: dict | None = None
 
 
 def measure(out_dir, name, values, plan) -> Measured:
@@ -55,9 +57,9 @@ def measure(out_dir, name, values, plan) -> Measured:
     ``Plan.table_values``), the turntable written (its exposure the first sphere's, as the page's)."""
     at_points, at_env = plan.measured(values)
     images = plan.images(at_points, at_env)
-    files = write_turntable(out_dir, name, plan, values, exposure(images[plan.spheres[0].label])) \
-        if plan.turntable else []
-    return Measured(at_points, images, files)
+    shown = exposed(images)
+    files = write_turntable(out_dir, name, plan, values, shown[plan.spheres[0].label][0]) if plan.turntable else []
+    return Measured(at_points, images, files, shown)
 
 
 def write_material(out_dir, name, values, model, fitted: Fitted, plan, measured: Measured | None = None):
@@ -69,7 +71,7 @@ def write_material(out_dir, name, values, model, fitted: Fitted, plan, measured:
     fitted = fitted.float64()
     fit = plan.images(fitted.points, fitted.env)
     lights = [(v.label, v.kind, v.light) for v in plan.spheres]
-    paths, captions = write_sphere_images(out_dir, name, model.spec, lights, measured.images, fit)
+    paths, captions = write_sphere_images(out_dir, name, model.spec, lights, measured.images, fit, measured.shown)
     paths += measured.files + write_slice_figures(out_dir, name, model, curves(plan, measured.at_points, fitted))
     return paths, captions
 

@@ -17,7 +17,6 @@ from its plan (brdfcl.report.view.views) and writes them with ``write_sphere_ima
 """
 from __future__ import annotations
 
-import os
 from functools import lru_cache
 from pathlib import Path
 
@@ -26,7 +25,8 @@ import numpy as np
 from brdfcl.data.merl import MerlTable
 from brdfcl.model.compose import Model
 from brdfcl.model.lobes.cells import Cells
-from brdfcl.report.files import write_exr, writing
+from brdfcl.report import files
+from brdfcl.report.files import write_exr
 from brdfcl.report.view.lookup import table_lookup
 
 CHUNK = 1 << 18                   # (pixel, sample) pairs evaluated at once
@@ -224,26 +224,35 @@ def _code(x):
 
 def panels(images, scale, gap=4, background=0.18):
     """sRGB uint8 image of ``images`` (each (n, n, 3), linear) side by side at one exposure."""
-    srgb = [to_srgb(img, scale, background) for img in images]
-    h = srgb[0].shape[0]
-    strip = np.full((h, gap, 3), 255, dtype=np.uint8)
+    return side_by_side([to_srgb(img, scale, background) for img in images], gap)
+
+
+def side_by_side(srgb, gap=4):
+    """uint8 images of one height side by side, ``gap`` white columns apart."""
+    strip = np.full((srgb[0].shape[0], gap, 3), 255, dtype=np.uint8)
     out = [srgb[0]]
     for img in srgb[1:]:
-        out += [strip, img]
+        out += [strip, img] if gap else [img]
     return np.concatenate(out, axis=1)
 
 
+def exposed(images) -> dict:
+    """{label: (exposure, sRGB image)} of measured sphere images ({label: radiance}): how their
+    panels show them (`exposure`, `to_srgb`), made once for the fitted side's panels."""
+    out = {}
+    for label, img in images.items():
+        scale = exposure(img)
+        out[label] = (scale, to_srgb(img, scale))
+    return out
+
+
 def write_png(path, rgb, size=None):
-    """Write a uint8 RGB image (h, w, 3) as PNG, resampled to ``size`` (w, h) where given,
-    atomically (a failed write: one line naming the path)."""
-    from PIL import Image
-    image = Image.fromarray(rgb)
-    if size is not None:
-        image = image.resize(size, Image.Resampling.BOX)
-    tmp = f"{path}.tmp.png"
-    with writing(path):
-        image.save(tmp, compress_level=1)
-        os.replace(tmp, path)
+    """Write a uint8 RGB image (h, w, 3) as PNG (brdfcl.report.files.write_png), resampled to
+    ``size`` (w, h) where given (a box filter), atomically (a failed write: one line naming the path)."""
+    if size is not None and tuple(size) != (rgb.shape[1], rgb.shape[0]):
+        from PIL import Image
+        rgb = np.asarray(Image.fromarray(rgb).resize(size, Image.Resampling.BOX))
+    files.write_png(path, rgb)
 
 
 def light_text(kind, d):
@@ -265,21 +274,24 @@ def sphere_caption(kind, d, meas, fit, spec, scale):
             "magenta: missing.")
 
 
-def write_sphere_images(out_dir, name, spec, lights, measured, fitted):
+def write_sphere_images(out_dir, name, spec, lights, measured, fitted, shown=None):
     """Per light, ``NAME-sphere-LIGHT.png`` (measured | fitted | |difference|, one exposure from
     the measured image, sRGB) and ``NAME-sphere-LIGHT.exr`` (linear float32; layers measured.R/G/B,
     fitted.*: -1 outside the sphere and where missing; difference.* = fitted - measured, 0 there;
     A: 1 on the sphere); and ``NAME-thumb.png``, measured | fitted under the first light at
-    THUMB_SIZE.  ``measured`` and ``fitted``: {label: radiance image}.
-    Returns (paths, {png name: caption})."""
+    THUMB_SIZE.  ``measured`` and ``fitted``: {label: radiance image}; ``shown``: `exposed` of
+    the measured images, where made before.  Returns (paths, {png name: caption})."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    paths, captions = [], {}
+    shown = shown if shown is not None else exposed({label: measured[label] for label, _, _ in lights})
+    paths, captions, thumb = [], {}, None
     for label, kind, d in lights:
         meas, fit = measured[label], fitted[label]
-        scale = exposure(meas)
+        scale, meas_srgb = shown[label]
+        fit_srgb = to_srgb(fit, scale)
+        thumb = thumb if thumb is not None else side_by_side([meas_srgb, fit_srgb], gap=0)
         png = out_dir / f"{name}-sphere-{label}.png"
-        write_png(png, panels([meas, fit, np.abs(fit - meas)], scale))
+        write_png(png, side_by_side([meas_srgb, fit_srgb, to_srgb(np.abs(fit - meas), scale)]))
         captions[png.name] = f"{name}, {label}: " + sphere_caption(kind, d, meas, fit, spec, scale)
         layers = {"A": np.isfinite(fit[..., 0]).astype(np.float32)}
         for layer, img in (("measured", meas), ("fitted", fit), ("difference", np.nan_to_num(fit - meas))):
@@ -288,6 +300,5 @@ def write_sphere_images(out_dir, name, spec, lights, measured, fitted):
         write_exr(exr, layers, compression="rle")
         paths += [png, exr]
     paths.append(out_dir / f"{name}-thumb.png")
-    meas = measured[lights[0][0]]
-    write_png(paths[-1], panels([meas, fitted[lights[0][0]]], exposure(meas), gap=0), (2 * THUMB_SIZE, THUMB_SIZE))
+    write_png(paths[-1], thumb, (2 * THUMB_SIZE, THUMB_SIZE))
     return paths, captions
