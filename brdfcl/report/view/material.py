@@ -49,7 +49,7 @@ class Measured:
     at_points: np.ndarray
     images: dict
     files: list
-    shown: dict | None = None
+    shown: dict
 
 
 def measure(out_dir, name, values, plan) -> Measured:
