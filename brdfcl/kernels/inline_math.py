@@ -1,12 +1,14 @@
-"""log1p, log and exp for the float32 kernels, written inline.
+"""log1p, log, exp and erfc for the float32 kernels, written inline.
 
 The OpenCL builtins are SLEEF's on PoCL: log1p and log a division and double-float arithmetic
-(~45 instructions), and on the pip wheel's PoCL (LLVM 14 does not inline builtins) out-of-line
-calls that spill every live vector register.  The log metric takes log1p three times per cell;
-the GTR and ABC lobes' Smith quadratures a log and an exp per node (20 each per cell).  These are
-a range reduction and one polynomial each, all FMAs, no division; float64 is the ground truth
-(tests/test_inline_math.py, on every OpenCL device too): log1p within 1.5 ulp for x >= 0, log
-within 1.5 ulp for normal x > 0, exp within 1.3 ulp.
+(~45 instructions), erfc about ten times an exp, and on the pip wheel's PoCL (LLVM 14 does not
+inline builtins) out-of-line calls that spill every live vector register.  The log metric takes
+log1p three times per cell; the GTR and ABC lobes' Smith quadratures a log and an exp per node (20
+each per cell); the Beckmann Smith term an erfc per direction.  log1p, log and exp are a range
+reduction and one polynomial each, all FMAs, no division; erfc is one division, a polynomial and
+two of these exps.  float64 is the ground truth (tests/test_inline_math.py, on every OpenCL device
+too): log1p within 1.5 ulp for x >= 0, log within 1.5 ulp for normal x > 0, exp within 1.3 ulp,
+erfc within 8 ulp wherever it is a normal float (Numerical Recipes' fit itself within 1.1e-7).
 
     log1p(x): u = 1 + x = 2^k m, m in [sqrt(1/2), sqrt(2))        (k, m from the bits of u)
               f = (m - 1) + (x - (u - 1)) 2^-k                    (the rounding of 1 + x carried)
@@ -15,10 +17,18 @@ within 1.5 ulp for normal x > 0, exp within 1.3 ulp.
     exp(x):   k = round(x / ln 2), r = x - k ln 2 in [-ln2/2, ln2/2]
               exp(x) = 2^k (1 + r + r^2 P(r))                     (P: minimax, (e^r - 1 - r) / r^2)
 
+    erfc(x):  z = |x|, t = 1 / (1 + z / 2), zh = z with its 12 low mantissa bits cleared
+              erfc(z) = t exp(-zh^2) exp(c0 + t (c1 + ... + t c9) - (z - zh)(z + zh))
+              erfc(-z) = 2 - erfc(z)
+              (Numerical Recipes' erfcc, Press et al., Numerical Recipes in C, 2nd ed., sec. 6.2:
+              a Chebyshev fit of relative error < 1.2e-7; zh^2 is exact, so the large part of the
+              exponent is not rounded and the second exp's argument stays small)
+
 Special values: log1p(inf) = log(inf) = exp(inf) = inf, log(0) = -inf, exp(-inf) = 0, NaN stays
 NaN, log of a negative is NaN, as the builtins.  Where they differ (outside what the kernels take):
 log1p(-1) is -88 and log1p(x < -1) a finite number, not -inf and NaN; log1p(-0) is +0; the log of
-a subnormal is about -88 (the truth down to -103); exp below -104 is 0.
+a subnormal is about -88 (the truth down to -103); exp below -104 is 0; erfc above 10.2 is 0 (the
+truth a subnormal below 1e-45 from 10.05).
 """
 from __future__ import annotations
 
@@ -26,7 +36,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-NAMES = ("log1p", "log", "exp")               # the builtins the float32 kernels take from here
+NAMES = ("log1p", "log", "exp", "erfc")       # the builtins the float32 kernels take from here
 
 LN2_HI, LN2_LO = 0.693145751953125, 1.4286068203094173e-06      # ln 2 = HI + LO, HI exact in 16 bits
 INV_LN2 = 1.4426950408889634                                   # 1 / ln 2
@@ -34,6 +44,7 @@ SQRT_HALF_BITS = 0x3F3504F3                                    # float bits of s
 MAGIC = 12582912.0                                             # 1.5 * 2^23: x + MAGIC rounds x to an integer
 MAGIC_BITS = 0x4B400000                                        # its bits: as_int(k + MAGIC) - MAGIC_BITS = k
 EXP_HI, EXP_LO = 88.8, -104.0                                  # exp is inf above, 0 below
+HIGH_BITS = 0xFFFFF000                                         # a float's sign, exponent and 11 mantissa bits
 
 # fit_log(8) and fit_exp(4), rounded to float32
 LOG_COEFFS = (-0.49999988079071045, 0.33333325386047363, -0.25001585483551025, 0.20001985132694244,
@@ -41,6 +52,10 @@ LOG_COEFFS = (-0.49999988079071045, 0.33333325386047363, -0.25001585483551025, 0
               -0.07623060792684555)
 EXP_COEFFS = (0.4999999403953552, 0.1666652113199234, 0.04166838899254799, 0.008368710055947304,
               0.0013814610429108143)
+
+ERFCC = (-1.26551223, 1.00002368, 0.37409196, 0.09678418, -0.18628806, 0.27886807, -1.13520398,
+         1.48851587, -0.82215223, 0.17087277)
+"""Numerical Recipes' erfcc coefficients c0 .. c9 (also printed into the GLSL and Dr.Jit exports)."""
 
 
 def _lawson(x: np.ndarray, q: np.ndarray, w: np.ndarray, degree: int, rounds: int = 60) -> tuple[float, ...]:
@@ -138,7 +153,20 @@ def exp_f32(x) -> np.ndarray:
         return np.where(x > EXP_HI, f32(np.inf), np.where(x < EXP_LO, f32(0), y)).astype(np.float32)
 
 
-TWINS: dict[str, Callable] = {"log1p": log1p_f32, "log": log_f32, "exp": exp_f32}
+def erfc_f32(x) -> np.ndarray:
+    """The kernels' erfc in numpy float32."""
+    x = np.asarray(x, np.float32)
+    f32 = np.float32
+    with np.errstate(invalid="ignore", over="ignore"):
+        z = (x.view(np.int32) & np.int32(0x7FFFFFFF)).view(np.float32)
+        zh = (z.view(np.uint32) & np.uint32(HIGH_BITS)).view(np.float32)
+        t = f32(1) / _fma(z, f32(0.5), f32(1))
+        q = _fma(-(z - zh), z + zh, _fma(_horner(ERFCC[1:], t), t, f32(ERFCC[0])))
+        r = np.where(np.isposinf(z), f32(0), t * exp_f32(q) * exp_f32(-(zh * zh)))
+        return np.where(x < 0, f32(2) - r, r).astype(np.float32)
+
+
+TWINS: dict[str, Callable] = {"log1p": log1p_f32, "log": log_f32, "exp": exp_f32, "erfc": erfc_f32}
 
 
 # ---- OpenCL ----------------------------------------------------------------------------------
@@ -154,7 +182,7 @@ def _poly(coeffs, x: str) -> str:
 
 
 def c_source(real: str, cond: str) -> str:
-    """brdfcl_log1p, brdfcl_log and brdfcl_exp for one float type (``float`` or ``floatN``) and its
+    """brdfcl_log1p, brdfcl_log, brdfcl_exp and brdfcl_erfc for one float type (``float`` or ``floatN``) and its
     integer type: only operators and reinterpreting casts, no builtin (the pip PoCL calls fma, min
     and convert out of line)."""
     parts = f"""\
@@ -194,5 +222,16 @@ def c_source(real: str, cond: str) -> str:
     const {cond} k1 = k >> 1;                                   /* 2^k in two factors: k up to 254 */
     const {real} y = p * as_{real}((k1 + 127) << 23) * as_{real}((k - k1 + 127) << 23);
     return x > {EXP_HI!r}f ? ({real})INFINITY : (x < {EXP_LO!r}f ? ({real})0 : y);
+}}
+
+{head} brdfcl_erfc({real} x)
+{{
+    const {real} z = as_{real}(as_{cond}(x) & 0x7fffffff);
+    const {real} zh = as_{real}(as_{cond}(z) & ({cond})(-4096));    /* HIGH_BITS: zh * zh exact */
+    const {real} t = 1 / (z * 0.5f + 1);
+    const {real} q = (0.0f - (z - zh)) * (z + zh) + (({_poly(ERFCC[1:], 't')}) * t + {ERFCC[0]!r}f);
+    const {real} e = t * brdfcl_exp(q) * brdfcl_exp(0.0f - zh * zh);
+    const {real} r = z == INFINITY ? ({real})0 : e;                /* inf - inf in q */
+    return x < 0 ? 2 - r : r;
 }}
 """

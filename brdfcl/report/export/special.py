@@ -2,16 +2,15 @@
 Dr.Jit), written once and printed into each.
 
 * ``erfc``: Numerical Recipes' erfcc (Press et al., Numerical Recipes in C, 2nd ed., sec. 6.2), a
-  Chebyshev fit with relative error < 1.2e-7 everywhere: with z = |x|, t = 1 / (1 + z / 2),
+  Chebyshev fit with relative error < 1.2e-7 everywhere, its coefficients those of the float32
+  kernels' erfc (brdfcl.kernels.inline_math): with z = |x|, t = 1 / (1 + z / 2),
   erfc(z) = t exp(-z^2 + c0 + t (c1 + t (c2 + ... + t c9))), and erfc(-z) = 2 - erfc(z).
 * ``log1p``: ln(1 + x) accurate near 0 from ln alone: u = 1 + x, then x where u == 1, else
   ln(u) x / (u - 1) (the rounding of u cancels).
 """
 from __future__ import annotations
 
-ERFCC = (-1.26551223, 1.00002368, 0.37409196, 0.09678418, -0.18628806, 0.27886807, -1.13520398,
-         1.48851587, -0.82215223, 0.17087277)
-"""Numerical Recipes' erfcc coefficients c0 .. c9."""
+from brdfcl.kernels.inline_math import ERFCC
 
 
 def erfcc_exponent(t: str = "t", z: str = "z") -> str:
