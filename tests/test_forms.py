@@ -273,16 +273,17 @@ def test_new_forms_start_near_the_fits_they_come_from():
 
 
 def test_screening_keeps_the_forms_near_each_materials_best():
-    from brdfcl.optim.forms import SCREEN, screen
+    from brdfcl.optim.forms import BEHIND, SCREEN, choose_form, screen
     specs = form_keys("diffuse+ggx", "gtr:dielectric,gtr:schlick")       # schlick: two more parameters
-    est = {"gtr:dielectric": np.array([1.0, 1.0, np.nan, 1.0]),
-           "gtr:schlick": np.array([0.5, 1.0, np.nan, np.nan])}
-    keep = screen(est, specs, 4)
-    assert keep["gtr:dielectric"].tolist() == [False, True, True, True]
-    assert keep["gtr:schlick"].tolist() == [True, True, True, False]       # the penalty within SCREEN
-    _, pen = __import__("brdfcl.optim.forms", fromlist=["choose_form"]).choose_form(
-        {"gtr:dielectric": 1.0, "gtr:schlick": 1.0}, specs)
-    assert pen["gtr:schlick"] / pen["gtr:dielectric"] - 1 < SCREEN
+    _, pen = choose_form({"gtr:dielectric": 1.0, "gtr:schlick": 1.0}, specs)
+    extra = pen["gtr:schlick"] / pen["gtr:dielectric"]                    # the penalty of its parameters
+    near, far = (1 + SCREEN / 2) / extra, (1 + 2 * SCREEN) / extra
+    est = {"gtr:dielectric": np.array([1.0, 1.0, 1.0, np.nan, 1.0]),
+           "gtr:schlick": np.array([0.5, near, far, np.nan, np.nan])}
+    keep = screen(est, specs, 5)
+    assert keep["gtr:dielectric"].tolist() == [False, True, True, True, True]
+    assert keep["gtr:schlick"].tolist() == [True, True, False, True, False]
+    assert BEHIND > SCREEN            # a preview run stopped behind is one the screen leaves out
 
 
 def test_a_subset_refined_alone_matches_it_refined_with_the_batch(demo_db):

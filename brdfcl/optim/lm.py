@@ -205,15 +205,16 @@ class LMRun:
 
 def levenberg_marquardt(jtj_x: JTJ, x0: np.ndarray, lo: np.ndarray, hi: np.ndarray,
                         opts: LMOptions | None = None, on_done: OnDone | None = None,
-                        on_iter: OnIter | None = None, floor: np.ndarray | None = None) -> LMState:
+                        on_iter: OnIter | None = None, floor: np.ndarray | None = None,
+                        ceiling: np.ndarray | None = None) -> LMState:
     """Minimise each row's loss from x0 (n, k).
 
     ``jtj_x(x (m, k), rows (m,)) -> (loss (m,), JTr (m, k), JTJ (m, k, k))`` in x space.
     ``on_done(rows, x, loss, status)`` is called with the rows that finish, as they do (before an
     iteration's launch, after it, at the iteration limit); ``on_iter(it, x, loss, running)`` after
-    each launch; ``floor``: see `LMRun`.  `LMRun` gives the same moments as a loop instead of
-    callbacks."""
-    run = LMRun(jtj_x, x0, lo, hi, opts, floor)
+    each launch; ``floor``, ``ceiling``: see `LMRun`.  `LMRun` gives the same moments as a loop
+    instead of callbacks."""
+    run = LMRun(jtj_x, x0, lo, hi, opts, floor, ceiling)
     st = run.state
     for step in run.steps():
         if step.evaluated and on_iter:

@@ -111,18 +111,24 @@ def refine(objective: Objective, target: Target, x0: np.ndarray, *, options: Fit
         running = mats[np.flatnonzero(step.running)] if step.evaluated else np.zeros(0, dtype=int)
         yield RefineStep(done.rows(np.flatnonzero(~dead)), running, _per_material(st.loss, mats, n, np.nan), start)
     if held:
+        cap = None
+        if ceiling is not None:
+            cap = np.full(n, np.inf)
+            cap[mats] = ceiling
         revived = revive(objective, target, _finished(objective, st, np.array(held), mats, n), options=options,
-                         log=log)
+                         log=log, ceiling=cap)
         revived.nfev += _per_material(st.nfev, mats, n, 0)
         yield RefineStep(revived, np.zeros(0, dtype=int), _per_material(st.loss, mats, n, np.nan), start)
 
 
 def revive(objective: Objective, target: Target, held: StageResult, *, options: FitOptions,
-           log: Callable[[str], None] = _quiet) -> StageResult:
+           log: Callable[[str], None] = _quiet, ceiling: np.ndarray | None = None) -> StageResult:
     """Revive each dead lobe of the rows ``held`` at ``options.probes`` shapes spread over its
     search range (amplitude mid-range), refine each, and keep the best per row (the held point if
-    no probe beats it).  ``nfev``: per material, the launches that evaluated its probes (as the
-    fit has always counted them: one per launch, however many probes it held)."""
+    no probe beats it).  ``ceiling`` (per material of the batch): a probe above its material's
+    stops as a row of `refine` does (`LMRun`).  ``nfev``: per material, the launches that
+    evaluated its probes (as the fit has always counted them: one per launch, however many probes
+    it held)."""
     sp, model = objective.spaces, objective.model
     slo, shi = sp.search_box
     starts, owner = [], []
@@ -142,7 +148,8 @@ def revive(objective: Objective, target: Target, held: StageResult, *, options: 
     mats = held.mat[np.array(owner, dtype=int)]
     log(f"local: {count(len(held.mat), 'material')} with a lobe at zero amplitude, {count(len(starts), 'probe')}")
     st = levenberg_marquardt(_JTJ(objective, target, mats), sp.to_y(np.array(starts)), *sp.y_bounds,
-                             options.lm, floor=noise_floor(objective, target, mats))
+                             options.lm, floor=noise_floor(objective, target, mats),
+                             ceiling=None if ceiling is None else ceiling[mats])
     xs = sp.from_y(st.x)
     for j, q in enumerate(owner):
         if np.isfinite(st.loss[j]) and st.loss[j] < out.fun[q]:
