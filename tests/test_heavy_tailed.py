@@ -196,11 +196,22 @@ def test_series_coefficients_kept_are_those_computed_alone(series, lo, hi):
     a, b = rng.uniform(lo[0], hi[0], 40), rng.uniform(lo[1], hi[1], 40)
     a[::5], b[::5] = a[1], b[1]                       # repeated rows within one call
 
+    cos2_b, weights = smith.density_weights(smith.HOST_NODES)
+    tan2 = (1 - smith._COS ** 2) / smith._COS ** 2
+
     def alone(i):
-        value, deriv = lam.rule.reference(lam._nodes, **{lam.inputs[0]: np.array([[a[i]]]),
-                                                         lam.inputs[1]: np.array([[b[i]]])})
-        coef = (smith._COS * value) @ smith._TO_COEF.T
-        return coef[0], {p: ((smith._COS * g) @ smith._TO_COEF.T)[0] for p, g in deriv.items()}
+        """One vector's coefficients, its rule summed node by node."""
+        at = {lam.inputs[0]: np.float64(a[i]), lam.inputs[1]: np.float64(b[i])}
+        def point(u):
+            co = np.full(1, 1 / np.sqrt(1 + u))
+            return lam.integrand.reference(smith._Nodes(co, co, np.full(1, u)), **at)
+        on_nodes = [point(t * c) for t in tan2 for c in cos2_b]
+
+        def coefficients(part):
+            rule = np.array([sum(w * part(on_nodes[k * len(cos2_b) + j])[0] for j, w in enumerate(weights))
+                             for k in range(len(tan2))])
+            return (smith._COS * rule) @ smith._TO_COEF.T
+        return coefficients(lambda o: o[0]), {p: coefficients(lambda o, p=p: o[1][p]) for p in lam.inputs}
     lam._memo.clear()
     first = lam.host_consts(**{lam.inputs[0]: a.reshape(8, 5), lam.inputs[1]: b.reshape(8, 5)})
     again = lam.host_consts(**{lam.inputs[0]: a[::-1], lam.inputs[1]: b[::-1]})

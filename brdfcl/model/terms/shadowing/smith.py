@@ -17,7 +17,7 @@ and, by parts, with P(t) the share of the projected microfacet area (D cos theta
 t = 1 / (tau cos b) maps both onto b in [0, pi/2) with smooth, bounded integrands:
 
     Lambda = (1/pi) int tan^2 b P db                                          (``lambda_from_share``)
-           = 2 int (tan b - b) sin b cos b tau^2 D(theta_m) / (1 + tau^2 cos^2 b)^2 db  (``lambda_from_density``)
+           = 2 int (tan b - b) sin b cos b tau^2 D(theta_m) / (1 + tau^2 cos^2 b)^2 db  (``density_integrand``)
 
 (P ~ 1/t^2 and D -> D(90 deg) in the tail).  They only read the distribution beyond the slope
 1/tau >= cot 80 deg = 0.18, so the peak's width (alpha = 1e-4 or 1) never has to be resolved.  At the
@@ -92,13 +92,18 @@ def lambda_from_share(tan2, share, n):
     return _rule(tan2, n, w * np.tan(b) ** 2 / np.pi, lambda q, r, u: share(q, r))
 
 
-def lambda_from_density(tan2, density, n):
-    """Lambda(tan^2 theta_o) by the n-node rule on 2 int (tan b - b) sin b cos b tau^2 D / (1 + u)^2 db
-    (u = tau^2 cos^2 b, so cos b tau^2 / (1 + u)^2 = u r^2 / cos b), ``density(q, r)`` = D at
-    cos^2 theta_m = q."""
+def density_weights(n):
+    """(cos^2 b_j, weights) of the n-node rule on the density form: Lambda(tau) = sum_j weight_j
+    ``density_integrand``(tau^2 cos^2 b_j)."""
     b, w = _nodes(n)
-    return _rule(tan2, n, 2 * w * (np.tan(b) - b) * np.sin(b) / np.cos(b),
-                 lambda q, r, u: u * r * r * density(q, r))
+    return np.cos(b) ** 2, 2 * w * (np.tan(b) - b) * np.sin(b) / np.cos(b)
+
+
+def density_integrand(u, density):
+    """The density form's integrand at one node, u = tau^2 cos^2 b: 2 int (tan b - b) sin b cos b tau^2
+    D / (1 + u)^2 db with cos b tau^2 / (1 + u)^2 = u r^2 / cos b, ``density(q, r)`` = D at
+    cos^2 theta_m = q = u / (1 + u), r = 1 - q = 1 / (1 + u) (passed apart: no cancellation)."""
+    return u * (1 / (1 + u)) ** 2 * density(u / (1 + u), 1 / (1 + u))
 
 
 # ---- a Lambda without a closed form, as a short series in cos theta --------------------------------
@@ -108,7 +113,7 @@ SERIES_TERMS = 14
 SERIES_FROM_DEG = 88.0
 """The series interpolates cos theta over [cos SERIES_FROM_DEG, 1]; beyond, it extrapolates."""
 HOST_NODES = 24
-"""Nodes of the rule the host evaluates at the series' nodes (``lambda_from_density``)."""
+"""Nodes of the rule the host evaluates at the series' nodes (``density_weights``)."""
 MEMO = 1 << 15
 """Parameter vectors whose coefficients a series Lambda keeps (``SeriesLambda.host_consts``)."""
 
@@ -138,24 +143,31 @@ class SeriesLambda:
     at each node, twice per cell and evaluation, which would make those kernels several times
     slower than GGX's.  The
     series moves the rule to the host: per evaluation (one parameter vector) the host evaluates the
-    rule ``correction`` (HOST_NODES Gauss-Legendre nodes, float64, its derivatives from SymPy) at the
-    series' SERIES_TERMS nodes in cos theta and interpolates, giving the coefficients c_k of x^k and
+    density form's rule (HOST_NODES Gauss-Legendre nodes, ``density_weights``) on ``integrand``
+    (float64, its derivatives from SymPy) at the series' SERIES_TERMS nodes in cos theta and
+    interpolates, giving the coefficients c_k of x^k and
     their derivatives by each input as host constants; a cell pays a Horner scheme.  The Chebyshev
     coefficients of a smooth function fall fast, so the x^k coefficients stay small and Horner's sum
     loses no more than a few float roundings.
     cos theta S = cos theta (Lambda - base) is smooth in cos theta (Lambda ~ tan theta near grazing),
     which makes a short series accurate: its error against the exact Lambda is measured by
     bench/lambda_gtr.py.  ``base(direction, **inputs)`` is a closed form the series corrects (GGX's
-    Lambda for GTR, 0 for none), ``correction(direction, n, **inputs)`` Lambda - base by an n-node rule,
-    ``origin`` the module that defines them (the host rule's generated code is keyed by it)."""
+    Lambda for GTR, 0 for none), ``integrand(u, **inputs)`` the density form's integrand of
+    Lambda - base at one node of the rule (``density_integrand``; u = tan^2 theta cos^2 b), ``origin``
+    the module that defines them (the host rule's generated code is keyed by it).  The host evaluates
+    the integrand once at every pair of series node and rule node, as one array, and sums the rule
+    by a matrix product: a few dozen numpy operations per launch, whatever HOST_NODES is."""
 
-    def __init__(self, name: str, inputs: tuple[str, ...], base, correction, origin: str):
+    def __init__(self, name: str, inputs: tuple[str, ...], base, integrand, origin: str):
         from brdfcl.model.terms.base import Term
         self.base, self.inputs = base, tuple(inputs)
         self.host = tuple(f"c{k}" for k in range(SERIES_TERMS))
-        self.rule = Term("shadowing", f"{name}_rule", (), lambda **p: correction(outgoing(), HOST_NODES, **p),
-                         uses=self.inputs, origin=origin)
-        self._nodes = _Nodes(_COS, _COS, (1.0 - _COS ** 2) / _COS ** 2)
+        self.integrand = Term("shadowing", f"{name}_integrand", (), lambda **p: integrand(outgoing().tan2, **p),
+                              uses=self.inputs, origin=origin)
+        cos2_b, self._weights = density_weights(HOST_NODES)
+        u = ((1.0 - _COS ** 2) / _COS ** 2)[:, None] * cos2_b          # (series node, rule node)
+        co = 1.0 / np.sqrt(1.0 + u.ravel())                              # a direction with tan^2 = u
+        self._points = _Nodes(co, co, u.ravel())
         self._memo: dict[bytes, np.ndarray] = {}
 
     def host_consts(self, **inputs):
@@ -191,10 +203,14 @@ class SeriesLambda:
     def _coefficients(self, rows):
         """(m, 1 + inputs, SERIES_TERMS): the x^k coefficients and their derivatives by each input
         at the parameter rows (m, inputs), from the host's rule."""
+        m = rows.shape[0]
         at = {k: np.ascontiguousarray(rows[:, j])[:, None] for j, k in enumerate(self.inputs)}
-        value, deriv = self.rule.reference(self._nodes, **at)
-        return np.stack([(_COS * np.broadcast_to(v, (rows.shape[0], SERIES_TERMS))) @ _TO_COEF.T
-                         for v in (value, *(deriv[p] for p in self.inputs))], axis=1)
+        value, deriv = self.integrand.reference(self._points, **at)
+
+        def coefficients(v):
+            on_nodes = np.broadcast_to(v, (m, self._points.t2o.size)).reshape(m, SERIES_TERMS, -1) @ self._weights
+            return (_COS * on_nodes) @ _TO_COEF.T
+        return np.stack([coefficients(v) for v in (value, *(deriv[p] for p in self.inputs))], axis=1)
 
     def __call__(self, d: Direction, **p):
         """Lambda in the direction ``d``: ``p`` holds the inputs and the coefficients c_k."""
@@ -216,4 +232,4 @@ def register_series(series: SeriesLambda, ndf: str, cite: str) -> None:
         register(Term("shadowing", f"smith_{ndf}{suffix}", (), form(series), uses=series.inputs, ndfs=(ndf,),
                       family=family,
                       host=series.host, host_consts=series.host_consts, cite=cite, doc=f"{kind} {doc}",
-                      origin=series.rule.origin))
+                      origin=series.integrand.origin))

@@ -1,6 +1,6 @@
 """Smith shadowing-masking for the ABC distribution (ndf/abc.py), from its exact Lambda as a short
 series (shadowing/smith.py, ``SeriesLambda``: a Chebyshev series in cos theta whose coefficients the
-host computes per evaluation from the exact Smith integral, ``lambda_from_density``).
+host computes per evaluation from the exact Smith integral, ``density_integrand``).
 
 The rule reads D = N (1 + B (1 - cos theta_m))^-C at its nodes, beyond the slope 1/tan theta_o;
 1 - cos theta_m = (1 - cos^2) / (1 + cos), without cancellation.  N (ndf/abc.py) is formed here from
@@ -15,7 +15,7 @@ B in [0.1, 1e8], C in [0.25, 8].
 (Heitz 2014, Understanding the masking-shadowing function, eq. 17 and 72 / 99; Low et al. 2012,
 section 5, for the distribution.)
 """
-from brdfcl.model.terms.shadowing.smith import CITE, SeriesLambda, lambda_from_density, register_series
+from brdfcl.model.terms.shadowing.smith import CITE, SeriesLambda, density_integrand, register_series
 
 _SERIES_BELOW = 1e-6
 
@@ -29,8 +29,8 @@ def _g(k, ell):
                      (expm1(k * ell) / k, True))
 
 
-def abc_lambda(d, n, B, C):
-    """ABC's Lambda in the direction ``d`` by the n-node rule."""
+def abc_integrand(u, B, C):
+    """The integrand of ABC's Lambda at one node of the density form's rule (u = tan^2 theta cos^2 b)."""
     from sympy import exp, log, pi, sqrt
 
     from brdfcl.model.terms.symbols import log1p
@@ -40,7 +40,7 @@ def abc_lambda(d, n, B, C):
     def density(q, r):                               # D at cos^2 theta_m = q, r = 1 - q
         return N * exp(-C * log(1 + B * r / (1 + sqrt(q))))
 
-    return lambda_from_density(d.tan2, density, n)
+    return density_integrand(u, density)
 
 
 def _no_base(d, B, C):
@@ -49,6 +49,6 @@ def _no_base(d, B, C):
     return Integer(0)
 
 
-LAMBDA_ABC = SeriesLambda("smith_abc", ("B", "C"), _no_base, abc_lambda, __name__)
+LAMBDA_ABC = SeriesLambda("smith_abc", ("B", "C"), _no_base, abc_integrand, __name__)
 CITE_ABC = CITE + "; Low et al. 2012 (ABC)"
 register_series(LAMBDA_ABC, "abc", CITE_ABC)

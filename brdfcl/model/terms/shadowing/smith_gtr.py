@@ -2,7 +2,7 @@
 
 GTR's Lambda has no closed form for gamma != 2 (its slope distribution is not shape-invariant).  It is
 written as GGX's closed form with the same alpha plus a correction, Lambda_gtr = Lambda_ggx(alpha) +
-rule[D_gtr - D_ggx], the exact Smith integral of shadowing/smith.py (``lambda_from_density``) of the
+rule[D_gtr - D_ggx], the exact Smith integral of shadowing/smith.py (``density_integrand``) of the
 difference of the two distributions, so that gamma = 2 is GGX's Smith G exactly, and alpha = 1 too
 (D uniform, GGX's, for any gamma).  The kernels read the correction as a Chebyshev series in
 cos theta whose coefficients the host computes per evaluation from the rule (shadowing/smith.py,
@@ -18,12 +18,13 @@ The error against the exact Lambda (the hemisphere integral of D's own reference
 bench/lambda_gtr.py (bench/results/lambda_gtr.md), over the whole box alpha 1e-4..1, gamma 1.05..4.
 (Heitz 2014, Understanding the masking-shadowing function, eq. 17 for Lambda and 72 / 99 for G.)
 """
-from brdfcl.model.terms.shadowing.smith import CITE, SeriesLambda, lambda_from_density, register_series
+from brdfcl.model.terms.shadowing.smith import CITE, SeriesLambda, density_integrand, register_series
 from brdfcl.model.terms.shadowing.smith_ggx import lambda_ggx
 
 
-def gtr_correction(d, n, alpha, gamma):
-    """Lambda_gtr - Lambda_ggx in the direction ``d`` by the n-node rule."""
+def gtr_integrand(u, alpha, gamma):
+    """The integrand of Lambda_gtr - Lambda_ggx at one node of the density form's rule (u = tan^2
+    theta cos^2 b)."""
     from sympy import Piecewise, exp, log, pi
 
     from brdfcl.model.terms.symbols import expm1
@@ -39,10 +40,10 @@ def gtr_correction(d, n, alpha, gamma):
         rest = r + a2 * q
         return c * exp(-gamma * log(rest)) - a2 / (pi * rest**2)
 
-    return on * lambda_from_density(d.tan2, density, n)
+    return on * density_integrand(u, density)
 
 
 LAMBDA_GTR = SeriesLambda("smith_gtr", ("alpha", "gamma"), lambda d, alpha, gamma: lambda_ggx(d, alpha),
-                          gtr_correction, __name__)
+                          gtr_integrand, __name__)
 CITE_GTR = CITE + "; Burley 2012 (GTR)"
 register_series(LAMBDA_GTR, "gtr", CITE_GTR)
