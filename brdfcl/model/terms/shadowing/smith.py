@@ -16,8 +16,8 @@ and, by parts, with P(t) the share of the projected microfacet area (D cos theta
 
 t = 1 / (tau cos b) maps both onto b in [0, pi/2) with smooth, bounded integrands:
 
-    Lambda = (1/pi) int tan^2 b P db                                          (``lambda_from_share``)
-           = 2 int (tan b - b) sin b cos b tau^2 D(theta_m) / (1 + tau^2 cos^2 b)^2 db  (``density_integrand``)
+    Lambda = (1/pi) int tan^2 b P db                                          (the share form)
+           = 2 int (tan b - b) sin b cos b tau^2 D(theta_m) / (1 + tau^2 cos^2 b)^2 db  (the density form)
 
 (P ~ 1/t^2 and D -> D(90 deg) in the tail).  They only read the distribution beyond the slope
 1/tau >= cot 80 deg = 0.18, so the peak's width (alpha = 1e-4 or 1) never has to be resolved.  At the
@@ -74,24 +74,6 @@ def _nodes(n):
     return np.pi / 4 * (x + 1.0), np.pi / 4 * w
 
 
-def _rule(tan2, n, coef, f):
-    """sum_j coef_j f(q_j, r_j, u_j): u_j = tan^2 theta_o cos^2 b_j, q_j = u_j / (1 + u_j) = cos^2 theta_m
-    and r_j = 1 - q_j = 1 / (1 + u_j) (passed apart: no cancellation)."""
-    b, _ = _nodes(n)
-    out = 0
-    for cj, bj in zip(coef, b):
-        u = tan2 * float(np.cos(bj) ** 2)
-        out = out + float(cj) * f(u / (1 + u), 1 / (1 + u), u)
-    return out
-
-
-def lambda_from_share(tan2, share, n):
-    """Lambda(tan^2 theta_o) by the n-node rule on (1/pi) int tan^2 b P db, ``share(q, r)`` = P at
-    cos^2 theta_m = q (r = 1 - q); SymPy expressions in, one out."""
-    b, w = _nodes(n)
-    return _rule(tan2, n, w * np.tan(b) ** 2 / np.pi, lambda q, r, u: share(q, r))
-
-
 def density_weights(n):
     """(cos^2 b_j, weights) of the n-node rule on the density form: Lambda(tau) = sum_j weight_j
     ``density_integrand``(tau^2 cos^2 b_j)."""
@@ -128,7 +110,8 @@ _TO_COEF = np.stack([np.polynomial.chebyshev.cheb2poly(row) for row in _CHEB.T],
 
 
 class _Nodes(NamedTuple):
-    """The cell quantities the host's rule reads at the series' nodes (an outgoing direction)."""
+    """The cell quantities the host's integrand reads at the rule's points (an outgoing direction
+    of tan^2 theta = u at each pair of series node and rule node)."""
     ch: np.ndarray
     co: np.ndarray
     t2o: np.ndarray
