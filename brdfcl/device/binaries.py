@@ -16,7 +16,7 @@ from pathlib import Path
 import pyopencl as cl
 
 from brdfcl._cache import cache_dir
-from brdfcl.device.build import KERNELS, build_options
+from brdfcl.device.build import build_options, kernel_names
 
 KEEP_BINARIES = 32
 """Program binaries kept in brdfcl's cache (the newest; each some 0.2-1 MB)."""
@@ -43,7 +43,7 @@ def load_binary(ctx, device, source: str, attempt: int = 0):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", cl.CompilerWarning)
             program = cl.Program(ctx, [device], [binary]).build(options=build_options(attempt), devices=[device])
-        return program, {k: cl.Kernel(program, k) for k in KERNELS}
+        return program, {k: cl.Kernel(program, k) for k in kernel_names(source)}
     except (cl.Error, ValueError):
         forget_binary(device, source, attempt)
         return None

@@ -16,6 +16,7 @@ from brdfcl.device import buildlog
 from brdfcl.device.errors import ProgramError
 
 KERNELS = ("target", "loss", "grad", "jtj", "errors", "predict")
+OPTIONAL_KERNELS = ("meat",)        # in the programs of the models that have them (brdfcl.kernels.codegen)
 BUILD_OPTIONS = ["-cl-mad-enable"]
 ABI_WARNING = "changes the ABI"     # LLVM, when vector arguments are wider than the target
 
@@ -31,6 +32,12 @@ def build_options(attempt: int) -> list[str]:
     return options
 
 
+def kernel_names(source: str) -> tuple[str, ...]:
+    """The kernels a program of ``source`` holds: every one of KERNELS, and those of
+    OPTIONAL_KERNELS its source declares."""
+    return KERNELS + tuple(k for k in OPTIONAL_KERNELS if f" void {k}(" in source)
+
+
 def build(ctx, device, source: str, attempt: int = 0):
     """(program, {name: kernel}) for a source; ``attempt`` > 0 builds it under a new cache key."""
     options = build_options(attempt)
@@ -39,7 +46,7 @@ def build(ctx, device, source: str, attempt: int = 0):
         with warnings.catch_warnings():         # Intel's compiler always logs; failures are ours to tell
             warnings.simplefilter("ignore", cl.CompilerWarning)
             program.build(options=options, devices=[device])
-        kernels = {k: cl.Kernel(program, k) for k in KERNELS}
+        kernels = {k: cl.Kernel(program, k) for k in kernel_names(source)}
     except cl.Error as e:
         f = buildlog.failure(e, f"build on {device.name}, options {' '.join(options)}")
         failed = ProgramError(buildlog.line(f"cannot build on {device.name}: ", f.cause, f.log), f.cause, f.log)

@@ -22,13 +22,13 @@ from brdfcl.device import buildlog, selftest, width
 from brdfcl.device.cellsets import CellSet, Place, build_cellset, extract, read_stacked, read_values, select_cells
 from brdfcl.device.platforms import has_fp64, is_cpu, pick_device, short_name
 from brdfcl.device.program import (
-    KERNELS,
     ProgramError,
     build,
     crash_guard,
     forget_binary,
     keep_attempt,
     keep_binary,
+    kernel_names,
     load_binary,
     remember_pocl_cache,
     repair_pocl_cache,
@@ -89,7 +89,7 @@ class Engine:
         self.pairs = jtj_pairs(self.model)
         self.n_out = n_outputs(self.model, len(self.pairs))
         self.program, self.self_test = self._compile(verify)
-        self._kernels = {k: cl.Kernel(self.program, k) for k in KERNELS}
+        self._kernels = {k: cl.Kernel(self.program, k) for k in kernel_names(self.source)}
 
     def _compile(self, verify):
         """The program for this source, built once per process and device; a build whose kernels
@@ -229,6 +229,22 @@ class Engine:
         for i, (a, b) in enumerate(self.pairs):
             H[:, a, b] = H[:, b, a] = o[:, 1 + k + i]
         return o[:, 0], o[:, 1:1 + k], H
+
+    @property
+    def has_meat(self) -> bool:
+        """Whether this program sums the sandwich's middle term (`meat`; brdfcl.kernels.codegen)."""
+        return "meat" in self._kernels
+
+    def meat(self, cs, values, mats):
+        """``M = sum_cells w^2 g g^T`` (n, k, k), ``g = sum_ch r dr/dtheta`` each cell's gradient
+        (brdfcl.optim.uncertainty), over every cell of the set."""
+        o = self._run("meat", cs, values, mats)
+        k = self.model.n_free
+        a, b = np.triu_indices(k)
+        M = np.zeros((o.shape[0], k, k))
+        M[:, a, b] = o
+        M[:, b, a] = o
+        return M
 
     def errors(self, cs, values, mats):
         """Reported errors (brdfcl.model.metrics) per evaluation: dict of arrays."""

@@ -4,7 +4,7 @@ A compiler that targets less than the device reports (PoCL's pip build on a Zen 
 reports AVX-512 widths but compiles for znver3) or a broken kernel-cache entry
 gives a program that builds and runs but computes garbage, or none of it.  So each
 program is checked once per process before it is trusted: every kernel (predict,
-loss, grad, jtj, errors) on a few hundred table cells, at two parameter vectors,
+loss, grad, jtj, errors, meat) on a few hundred table cells, at two parameter vectors,
 against `Model.reference` in float64.  Cheap (milliseconds), and independent of
 the engine's internals: it only uses its public launches.
 """
@@ -47,13 +47,16 @@ def _cells(cutoff_deg=80.0):
 
 
 def _reference(model, cells, meas, w, values, metric, cosw):
-    """Predictions, loss, gradient and J^T W r of one parameter vector in float64."""
+    """Predictions, loss, gradient, J^T W r and the meat sum_cells w^2 g g^T (g = sum_ch r u) of one
+    parameter vector in float64."""
     p, J = model.reference(cells, values)
     cw = cells.ci if cosw else np.ones_like(cells.ci)
     gp, dg = transform(metric, p * cw)
     r = gp - transform(metric, meas * cw)[0]
     u = (dg * cw)[..., None] * J
-    return p, float(np.sum(w * r * r)), 2 * np.einsum("cn,cnk->k", w * r, u), np.einsum("cn,cnk->k", w * r, u)
+    g = np.einsum("cn,cnk->nk", r, u)
+    return (p, float(np.sum(w * r * r)), 2 * np.einsum("cn,cnk->k", w * r, u), np.einsum("cn,cnk->k", w * r, u),
+            np.einsum("n,nk,nl->kl", w * w, g, g))
 
 
 def _rel(a, b):
@@ -84,14 +87,17 @@ def check(engine) -> SelfTest:
         L2, JTr, _ = engine.jtj(cs, values, mats)
         E = engine.errors(cs, values, mats)
         L3 = engine.loss(cs, values, mats)
+        M = engine.meat(cs, values, mats) if engine.has_meat else None
     except Exception as e:  # a launch that fails is a failed test, reported in one line
         return SelfTest(False, np.inf, f"launch failed: {type(e).__name__}: {e}")
     worst, where = 0.0, ""
     for k, v in enumerate(values):
-        p, lr, gr, jr = _reference(model, cells, meas, w, v, opt.metric, opt.cosw)
+        p, lr, gr, jr, mr = _reference(model, cells, meas, w, v, opt.metric, opt.cosw)
         checks = {"predict": (P[k], p), "loss": (L3[k], lr), "grad loss": (L[k], lr), "grad": (G[k], gr),
                   "jtj loss": (L2[k], lr), "jtj J^T W r": (JTr[k], jr),
                   "errors": (E[f"rmse_{opt.metric}"][k] ** 2 * model.n_channels * np.sum(w), lr)}
+        if M is not None:
+            checks["meat"] = (M[k], mr)
         for name, (got, want) in checks.items():
             err = _rel(got, want)
             if not err <= worst:

@@ -94,6 +94,16 @@ class KernelOptions:
             raise ValueError(f"vector width {self.vw} / local size {self.local}: powers of two expected")
 
 
+MEAT_MAX_FREE = 32
+"""Free parameters up to which a program holds the ``meat`` kernel (its k (k + 1) / 2 sums in
+each work-item); a larger model's M is summed by the float64 reference (brdfcl.optim.uncertainty)."""
+
+
+def has_meat(model: Model) -> bool:
+    """Whether ``model``'s program holds the ``meat`` kernel."""
+    return model.n_free <= MEAT_MAX_FREE
+
+
 LOOP_FROM = 4
 """Models of this many channels or more are written as one loop over their channels: an
 unrolled 31-band program is 31 copies of the per-channel code, which PoCL takes tens of seconds
@@ -180,7 +190,7 @@ def render(model: Model, opt: KernelOptions) -> str:
         inline_names=inline_math.NAMES,
         slots=model.slots, n_slots=model.n_params, n_ch=model.n_channels,
         consts=["K_" + k.replace(".", "_") for k in model.const_names],
-        n_prm=model.n_params + len(model.const_names), n_free=model.n_free,
+        n_prm=model.n_params + len(model.const_names), n_free=model.n_free, meat=has_meat(model),
         lines=em.lines, value=em.value, jac=em.jac, pairs=pairs, ch_loop=lem is not None,
         loop_lines=lem.lines if lem else [], body=lem.body if lem else [],
         loop_value=lem.loop_value if lem else [],
@@ -201,4 +211,5 @@ def jtj_pairs(model: Model):
 def n_outputs(model: Model, n_pairs: int) -> dict:
     """Partial sums each kernel writes per evaluation and work-group."""
     return {"loss": 1, "grad": 1 + model.n_free, "jtj": 1 + model.n_free + n_pairs,
-            "errors": len(IMPLEMENTED_METRICS) + 2}      # sum w r^2 per metric, sum w x_m^2, sum w
+            "errors": len(IMPLEMENTED_METRICS) + 2,      # sum w r^2 per metric, sum w x_m^2, sum w
+            "meat": model.n_free * (model.n_free + 1) // 2}

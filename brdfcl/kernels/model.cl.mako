@@ -336,6 +336,55 @@ ${reduce_and_write(['acc_l'] + ['acc_g%d' % k for k in range(n_free)] + ['acc_h%
 % endif
 }
 
+% if meat:
+/* the sandwich's middle term (brdfcl.optim.uncertainty): M = sum_cells w^2 g g^T, with g = sum_ch r dr
+ * the cell's own gradient (all channels together: cells are the independent units), its upper
+ * triangle row by row; a non-finite g counts as zero */
+__kernel __attribute__((reqd_work_group_size(1, ${wg}, 1))) void meat(KARGS)
+{
+${prologue()}
+    real_v acc_m[${n_free * (n_free + 1) // 2}];
+    for (int k = 0; k < ${n_free * (n_free + 1) // 2}; k++) acc_m[k] = 0;
+    for (int v = v0 + lid; v < v1; v += ${wg}) {
+${cell_and_model()}
+        real_v gc[${n_free}];
+        for (int k = 0; k < ${n_free}; k++) gc[k] = 0;
+% if ch_loop:
+        const real_v cw = ${'c.ci' if cosw else '(real_v)1'};
+        for (int ch = 0; ch < ${n_ch}; ch++) {
+${channel_model()}
+${channel_residual()}
+            const real_v q = r * metric_dg(x, gx) * cw;
+% for i, col, parts in loop_jac:
+            gc[${col}] += q * (${' + '.join(parts)});
+% endfor
+        }
+% else:
+${residuals()}
+% for ch in range(n_ch):
+        {
+        const real_v q = r${ch} * metric_dg(x${ch}, g${ch}) * cw;
+% for k, parts in sorted(jac[ch].items()):
+        gc[${k}] += q * (${' + '.join(parts)});
+% endfor
+        }
+% endfor
+% endif
+        const real_v wsq = w * w;
+        for (int k = 0; k < ${n_free}; k++) gc[k] = SEL(gc[k], (real_v)0, isfinite(gc[k]) == 0);
+% for a in range(n_free):
+        {
+        const real_v wa = wsq * gc[${a}];
+% for b in range(a, n_free):
+        acc_m[${a * n_free - a * (a - 1) // 2 + b - a}] += wa * gc[${b}];
+% endfor
+        }
+% endfor
+    }
+${reduce_and_write([], [('acc_m', n_free * (n_free + 1) // 2)])}
+}
+% endif
+
 /* every reported error at once: sum w r^2 for ${', '.join(n for n, _, _ in reported)}, sum w x_m^2, sum w */
 __kernel __attribute__((reqd_work_group_size(1, ${wg}, 1))) void errors(KARGS)
 {

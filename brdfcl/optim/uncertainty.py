@@ -20,20 +20,20 @@ bootstrap refits per parameter, where the homoscedastic form underestimates the 
 parameters' by an order of magnitude and ``sigma^2 H^-1`` is off by up to a factor of two either
 way (tests/test_uncertainty.py checks the sandwich against the bootstrap and gives the figures).
 
-``H`` comes from the kernels (``Engine.jtj``, full table, one launch for all materials finishing
-together), plus the Gauss-Newton Hessian of the peak-order penalty when the fit has one (it is a
-constraint, not data, so it enters H and not M).  ``M`` needs the residual of every cell, which
-the kernels only return summed, so it is computed with the float64 reference on a systematic
-subsample of the fitted cells (every ``stride``-th in table order, at most ``MEAT_CELLS`` cells,
-scaled by the stride): on the full table (910k cells) every 46th, whose standard errors are
-within 6% of those of every cell for GGX lobes of alpha 0.1 to 1e-3, at a small part of a fit's
-cost.  Parameters at a bound are held (their rows and
-columns are left out: standard errors conditional on them) and get no standard error (None, JSON
-null), as do fixed parameters.  All values are in natural units (not the optimiser's log space); for a
-log-flagged parameter ``std_error / value`` is the standard error of its logarithm.  A residual
-that is systematic (a model that does not fit) is treated as noise of independent cells; the
-errors then say how much the fit depends on which cells were measured, not how far the model
-is from the truth.
+``H`` and ``M`` come from the kernels (``Engine.jtj`` and ``Engine.meat``, over every fitted
+cell, one launch each for all materials finishing together), plus the Gauss-Newton Hessian of the
+peak-order penalty in ``H`` when the fit has one (it is a constraint, not data, so it enters H
+and not M).  ``meat`` here is the float64 reference of ``M`` the kernel is checked against; it
+also sums ``M`` for a model too large for the kernel (brdfcl.kernels.codegen.MEAT_MAX_FREE), on a
+systematic subsample of the fitted cells (every ``stride``-th in table order, at most
+``MEAT_CELLS`` cells, scaled by the stride: on the full table every 46th, whose standard errors
+are within 6% of those of every cell for GGX lobes of alpha 0.1 to 1e-3).  Parameters at a bound
+are held (their rows and columns are left out: standard errors conditional on them) and get no
+standard error (None, JSON null), as do fixed parameters.  All values are in natural units (not
+the optimiser's log space); for a log-flagged parameter ``std_error / value`` is the standard
+error of its logarithm.  A residual that is systematic (a model that does not fit) is treated as
+noise of independent cells; the errors then say how much the fit depends on which cells were
+measured, not how far the model is from the truth.
 
 What is attached to each fit (these errors, the directional albedo of brdfcl.optim.albedo and the
 flags) is assembled in brdfcl.optim.assessment.
@@ -51,7 +51,7 @@ from brdfcl.model.compose import Model
 from brdfcl.model.lobes.cells import Cells
 from brdfcl.model.metrics import transform
 
-MEAT_CELLS = 20_000                     # cells for the sandwich's middle term (see module doc)
+MEAT_CELLS = 20_000                     # cells of the reference's middle term (see module doc)
 
 
 # --- standard errors -----------------------------------------------------------------------------
@@ -83,18 +83,24 @@ def meat_stride(n_cells: int) -> int:
     return max(1, math.ceil(n_cells / MEAT_CELLS))
 
 
-def method_line(stride: int, penalty: bool = False) -> str:
-    nth = f"{stride}{'th' if 10 <= stride % 100 < 20 else {1: 'st', 2: 'nd', 3: 'rd'}.get(stride % 10, 'th')}"
-    every = "every cell" if stride == 1 else f"every {nth} cell"
+def method_line(stride: int | None, penalty: bool = False) -> str:
+    """NAME.json's line on how the errors were computed (``stride`` None: M by the kernels, over
+    every cell)."""
+    if stride is None:
+        every = "every fitted cell"
+    else:
+        nth = f"{stride}{'th' if 10 <= stride % 100 < 20 else {1: 'st', 2: 'nd', 3: 'rd'}.get(stride % 10, 'th')}"
+        every = ("every cell" if stride == 1 else f"every {nth} cell") + " (float64 reference)"
     return (f"sandwich H^-1 M H^-1 (HC0, cells independent): H = J^T W J on the fitted cells"
             f"{' plus the peak-order penalty' if penalty else ''}, M = sum w^2 (J^T r)(J^T r)^T over "
-            f"{every} (float64 reference); natural units; parameters at a bound held fixed")
+            f"{every}; natural units; parameters at a bound held fixed")
 
 
 def meat(model: Model, index: np.ndarray, data: np.ndarray, values: np.ndarray, metric: str = "log",
          cosw: bool = True, stride: int = 1, rows: np.ndarray | None = None, cs: CellSet | None = None) -> np.ndarray:
-    """``M = sum_cells w^2 g g^T``, ``g = sum_ch r dr/dtheta`` (n, k, k) for each material, on every
-    ``stride``-th of the cells ``index`` (table order) scaled by the stride.  ``data``: measured
+    """The float64 reference of ``Engine.meat``: ``M = sum_cells w^2 g g^T``, ``g = sum_ch r
+    dr/dtheta`` (n, k, k) for each material, on every ``stride``-th of the cells ``index`` (table
+    order) scaled by the stride.  ``data``: measured
     values at ``index`` (NaN: missing), (materials, channels, index.size); fit i is of material
     ``rows[i]`` (default i); ``values``: (n, n_params) natural.  A cell set ``cs`` of scattered
     samples gives each material's own cells and weights instead of the table's."""
@@ -182,17 +188,22 @@ def standard_errors(engine: Engine, cs: CellSet, data: np.ndarray, values: np.nd
     """Uncertainty of each fit: ``values`` (n, n_params) natural, fitted to materials ``mats`` of
     the cell set ``cs``, whose values at ``cs.index`` are ``data`` (materials of cs, channels, cells).
     ``at_bound``: names held at a bound per fit; ``extra_hessian`` (n, k, k): a penalty's
-    Gauss-Newton Hessian in natural units.  One jtj launch for all fits."""
+    Gauss-Newton Hessian in natural units; ``stride``: sum M by the float64 reference on every
+    stride-th cell (default: by the engine over every cell where its program has the kernel).  One
+    jtj and one meat launch for all fits."""
     model = engine.model
     values = np.atleast_2d(np.asarray(values, dtype=np.float64))
     n = values.shape[0]
-    stride = stride or meat_stride(cs.index.size)
     _, _, H = engine.jtj(cs, values, mats)
     if extra_hessian is not None:
         H = H + extra_hessian
     mats = np.broadcast_to(np.asarray(mats), (n,))
-    M = meat(model, cs.index, data, values, metric=engine.opt.metric, cosw=engine.opt.cosw, stride=stride, rows=mats,
-             cs=cs)
+    if stride is None and engine.has_meat:
+        M = engine.meat(cs, values, mats)
+    else:
+        stride = stride or meat_stride(cs.index.size)
+        M = meat(model, cs.index, data, values, metric=engine.opt.metric, cosw=engine.opt.cosw, stride=stride,
+                 rows=mats, cs=cs)
     free = [model.names[i] for i in model.free_index]
     out = []
     for i in range(n):
