@@ -158,3 +158,36 @@ def test_many_channels_share_one_loop_unless_their_parameters_differ_in_kind():
     assert "written out one by one" in render(mixed, KernelOptions())
     with pytest.raises(NotLoopable, match="diffraction.k_400nm"):
         render(mixed, KernelOptions(channel_loop=True))
+
+
+def test_owned_data_is_read_in_place_and_a_callers_is_copied():
+    """On a CPU device a cell set reads data it owns (``own``: the pipeline's arrays, or its own
+    padded copy) in place and makes them read-only; a caller's array is copied and stays theirs."""
+    from brdfcl.data.geometry import TABLE
+    from brdfcl.device.cellsets import Place, aligned_empty
+    from brdfcl.device.platforms import is_cpu
+    try:
+        engine = Engine("diffuse")
+    except Exception as e:          # noqa: BLE001 - no device builds here
+        pytest.skip(f"no OpenCL device: {e}")
+    idx = select_cells(80.0, stride=50)[:1024]           # a multiple of every vector width
+    rng = np.random.default_rng(5)
+    values = rng.uniform(0.05, 0.5, (2, 3, idx.size)).astype(np.float32)
+    v = engine.model.defaults()
+    mats = np.array([0, 1])
+    want = engine.loss(engine.upload(["a", "b"], idx, values.copy()), [v, v], mats)
+
+    theirs = values.copy()
+    cs = engine.upload(["a", "b"], idx, theirs)
+    assert theirs.flags.writeable
+    theirs[:] = 1.0                                       # the caller's to change: the set keeps its copy
+    np.testing.assert_array_equal(engine.loss(cs, [v, v], mats), want)
+
+    owned = aligned_empty(values.shape, np.float32)
+    owned[:] = values
+    cs = engine.upload_places(["a", "b"], [Place(TABLE, idx, 1.0)], owned, own=True)
+    np.testing.assert_array_equal(engine.loss(cs, [v, v], mats), want)
+    assert owned.flags.writeable is (not is_cpu(engine.device))
+    if is_cpu(engine.device):
+        with pytest.raises(ValueError):
+            owned[0, 0, 0] = 2.0

@@ -5,7 +5,8 @@ A batch of measurements (brdfcl.data.measurement) that share one layout (MERL ta
 one geometry, uploaded once (``geo_stride`` 0); otherwise (scattered samples) each material
 brings its own, padded to the longest.  Data are (material, channel, cell), NaN where missing,
 padded to a multiple of the vector width and split into blocks under the device's largest
-allocation.
+allocation.  On a CPU device a block brdfcl owns (its own padded copy, or data read for the
+pipeline: ``own``) is the buffer's memory (USE_HOST_PTR, no copy) and is made read-only.
 """
 from __future__ import annotations
 
@@ -20,10 +21,21 @@ import pyopencl as cl
 
 from brdfcl.data.geometry import DEFAULT_CUTOFF_DEG, TABLE
 from brdfcl.data.measurement import Layout, Measurement
+from brdfcl.device.platforms import is_cpu
 from brdfcl.model.lobes.cells import Cells
 
 _CPUS = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
 READ_WORKERS = min(4, _CPUS)     # threads reading measurement files: the CPUs this process may use
+ALIGN = 128                      # bytes: the widest vector a kernel loads (double16)
+
+
+def aligned_empty(shape, dtype) -> np.ndarray:
+    """An uninitialised array whose data start on an ALIGN-byte boundary (a CPU device may then
+    use it as a buffer's memory: the kernels' vector loads assume aligned rows)."""
+    dtype = np.dtype(dtype)
+    raw = np.empty(int(np.prod(shape)) * dtype.itemsize + ALIGN, dtype=np.uint8)
+    start = -raw.ctypes.data % ALIGN
+    return raw[start:start + int(np.prod(shape)) * dtype.itemsize].view(dtype).reshape(shape)
 
 
 @dataclass(frozen=True)
@@ -149,7 +161,7 @@ def read_stacked(measurements: Sequence[Measurement], indices: Sequence[np.ndarr
     """`read_values` for measurements sharing one layout, each read straight into its row of one
     array per index set: (the positions of those read, [(n_read, C, n_i)])."""
     n_ch = measurements[0].n_channels if measurements else 3
-    stacked = [np.empty((len(measurements), n_ch, np.size(i)), dtype) for i in indices]
+    stacked = [aligned_empty((len(measurements), n_ch, np.size(i)), dtype) for i in indices]
     kept, _ = read_values(measurements, lambda k: indices, dtype, on_error, workers,
                           into=lambda k: [s[k] for s in stacked])
     if len(kept) < len(measurements):
@@ -176,9 +188,10 @@ def _rows(place: Place, cutoff_deg, n_pad: int) -> np.ndarray:
 
 
 def build_cellset(ctx, names, places: Sequence[Place], data, dtype=np.float32, pad_to=16,
-                  cutoff_deg=DEFAULT_CUTOFF_DEG, max_alloc=None):
+                  cutoff_deg=DEFAULT_CUTOFF_DEG, max_alloc=None, own=False):
     """Upload a batch: ``places`` one shared Place, or one per material; ``data`` (n_mat, C, n)
-    for a shared place, else a list of (C, n_i) per material."""
+    for a shared place, else a list of (C, n_i) per material.  ``own``: ``data`` is the cell
+    set's to keep (a CPU device then reads it in place, and it becomes read-only)."""
     places = list(places)
     if len(places) <= 1:
         place = places[0]
@@ -188,7 +201,7 @@ def build_cellset(ctx, names, places: Sequence[Place], data, dtype=np.float32, p
         index = place.index
         if not isinstance(data, np.ndarray):                # one material's (C, n) in a list
             data = np.stack(list(data))
-        blocks = _data_blocks(ctx, data, n, n_pad, dtype, max_alloc)
+        blocks = _data_blocks(ctx, data, n, n_pad, dtype, max_alloc, own)
         n_ch = data.shape[1]
     else:
         n_ch = {v.shape[0] for v in data}
@@ -207,20 +220,32 @@ def build_cellset(ctx, names, places: Sequence[Place], data, dtype=np.float32, p
     return CellSet(list(names), index, n_pad, dtype, geom, blocks, geom_buf, places, cutoff_deg, n_channels=n_ch)
 
 
-def _data_blocks(ctx, data, n, n_pad, dtype, max_alloc=None):
+def _data_blocks(ctx, data, n, n_pad, dtype, max_alloc=None, own=False):
     """Per-material data (n_mat, C, n) padded to n_pad with NaN, in buffers under the device's
-    largest allocation: [(first material, count, buffer)]."""
+    largest allocation: [(first material, count, buffer)].  On a CPU device a block that is
+    brdfcl's (a padded copy made here, or slices of ``data`` when ``own``) and aligned is the
+    buffer's memory; it is made read-only, since the buffer reads it in place."""
     n_ch = data.shape[1]
     per_mat = n_ch * n_pad * np.dtype(dtype).itemsize
     max_alloc = max_alloc or ctx.devices[0].max_mem_alloc_size
     per_block = max(1, int(max_alloc // per_mat))
+    in_place = is_cpu(ctx.devices[0])
+    mf = cl.mem_flags
     blocks = []
     for first in range(0, len(data), per_block):
         if n == n_pad and data.dtype == dtype and data.flags.c_contiguous:
             chunk = data[first:first + per_block]            # no padding needed: no copy
+            mine = own
         else:
-            chunk = np.full((min(per_block, len(data) - first), n_ch, n_pad), np.nan, dtype=dtype)
+            chunk = aligned_empty((min(per_block, len(data) - first), n_ch, n_pad), dtype)
+            chunk[:, :, n:] = np.nan
             chunk[:, :, :n] = data[first:first + per_block]
-        blocks.append((first, len(chunk), cl.Buffer(ctx, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
-                                                    hostbuf=chunk)))
+            mine = True
+        if in_place and mine and chunk.ctypes.data % ALIGN == 0:
+            for a in (chunk, data) if own else (chunk,):
+                a.flags.writeable = False
+            flags = mf.READ_ONLY | mf.USE_HOST_PTR
+        else:
+            flags = mf.READ_ONLY | mf.COPY_HOST_PTR
+        blocks.append((first, len(chunk), cl.Buffer(ctx, flags, hostbuf=chunk)))
     return blocks

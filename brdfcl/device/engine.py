@@ -147,14 +147,17 @@ class Engine:
         place = Place(layout, np.asarray(index), 1.0 if weight_scale is None else weight_scale)
         return self.upload_places(names, [place], data, cutoff_deg, max_alloc)
 
-    def upload_places(self, names, places, data, cutoff_deg=DEFAULT_CUTOFF_DEG, max_alloc=None) -> CellSet:
-        """A cell set of one shared Place ((n_mat, C, n) data) or one per material ([(C, n_i)])."""
+    def upload_places(self, names, places, data, cutoff_deg=DEFAULT_CUTOFF_DEG, max_alloc=None,
+                      own=False) -> CellSet:
+        """A cell set of one shared Place ((n_mat, C, n) data) or one per material ([(C, n_i)]).
+        ``own``: the data are the cell set's to keep (on a CPU device it reads them in place, and
+        they become read-only)."""
         bad = [n for n, v in zip(names, data) if v.shape[0] != self.model.n_channels]
         if bad:
             raise ValueError(f"{bad[0]}: {count(data[list(names).index(bad[0])].shape[0], 'channel')}, but the "
                              f"model has {self.model.n_channels}")
         return build_cellset(self.ctx, names, places, data, self.dtype, pad_to=max(16, self.opt.vw),
-                             cutoff_deg=cutoff_deg, max_alloc=max_alloc)
+                             cutoff_deg=cutoff_deg, max_alloc=max_alloc, own=own)
 
     def upload_cells(self, names, cells, weights, values) -> CellSet:
         """A cell set at arbitrary cells: per material its Cells, weights (n_i,) and values

@@ -136,7 +136,7 @@ class Fitter:
         sets = []
         for j in range(n_sets):
             at, values_j = stage(j)
-            sets.append(self.engine.upload_places(names, at, values_j, cutoff_deg=cut))
+            sets.append(self.engine.upload_places(names, at, values_j, cutoff_deg=cut, own=True))
         full = Target(sets[0], scale)
         coarse = Target(sets[1], scale) if n_sets > 1 else full
         preview = Target(sets[2], scale) if n_sets > 2 else None
