@@ -26,7 +26,7 @@ def engine(tmp_path, monkeypatch):
 def test_a_built_program_is_kept_and_loads_from_its_binary(engine):
     path = binary_path(engine.device, engine.source)
     assert path.is_file() and path.stat().st_size > 0
-    program, kernels = load_binary(engine.ctx, engine.device, engine.source)
+    program, kernels = load_binary(engine.ctx, engine.device, engine.source, names=engine.kernel_names)
     engine.program, engine._kernels = program, kernels
     assert selftest.check(engine).ok
 

@@ -16,7 +16,8 @@ from pathlib import Path
 import pyopencl as cl
 
 from brdfcl._cache import cache_dir
-from brdfcl.device.build import build_options, kernel_names
+from brdfcl.device.build import build_options
+from brdfcl.kernels.codegen import KERNELS
 
 KEEP_BINARIES = 32
 """Program binaries kept in brdfcl's cache (the newest; each some 0.2-1 MB)."""
@@ -31,8 +32,8 @@ def binary_path(device, source: str, attempt: int = 0) -> Path:
     return cache_dir() / "programs" / f"{hashlib.sha1(ident.encode()).hexdigest()[:32]}.bin"
 
 
-def load_binary(ctx, device, source: str, attempt: int = 0):
-    """(program, {name: kernel}) from the binary a successful build left (`keep_binary`), None when
+def load_binary(ctx, device, source: str, attempt: int = 0, names: tuple[str, ...] = KERNELS):
+    """(program, {name: kernel} of ``names``) from the binary a successful build left (`keep_binary`), None when
     there is none or it does not load (then removed), built with the same options as from source."""
     path = binary_path(device, source, attempt)
     try:
@@ -43,7 +44,7 @@ def load_binary(ctx, device, source: str, attempt: int = 0):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", cl.CompilerWarning)
             program = cl.Program(ctx, [device], [binary]).build(options=build_options(attempt), devices=[device])
-        return program, {k: cl.Kernel(program, k) for k in kernel_names(source)}
+        return program, {k: cl.Kernel(program, k) for k in names}
     except (cl.Error, ValueError):
         forget_binary(device, source, attempt)
         return None

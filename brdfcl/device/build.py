@@ -1,9 +1,10 @@
 """Building a generated OpenCL program from source: its kernels, its build options, its log.
 
-One place says which kernels a program holds (KERNELS) and which options build it, so that a
-program built from source and one loaded from a kept binary (brdfcl.device.binaries) are built
-alike.  A failed build is one short ProgramError line (the whole log goes to brdfcl's build logs,
-brdfcl.device.buildlog), and the failed program is released at once.
+One place says which options build a program, so that a program built from source and one
+loaded from a kept binary (brdfcl.device.binaries) are built alike; which kernels it holds comes
+from the generated source's model (brdfcl.kernels.codegen.kernel_names).  A failed build is one
+short ProgramError line (the whole log goes to brdfcl's build logs, brdfcl.device.buildlog), and
+the failed program is released at once.
 """
 from __future__ import annotations
 
@@ -14,9 +15,8 @@ import pyopencl as cl
 
 from brdfcl.device import buildlog
 from brdfcl.device.errors import ProgramError
+from brdfcl.kernels.codegen import KERNELS
 
-KERNELS = ("target", "loss", "grad", "jtj", "errors", "predict")
-OPTIONAL_KERNELS = ("meat",)        # in the programs of the models that have them (brdfcl.kernels.codegen)
 BUILD_OPTIONS = ["-cl-mad-enable"]
 ABI_WARNING = "changes the ABI"     # LLVM, when vector arguments are wider than the target
 
@@ -32,21 +32,16 @@ def build_options(attempt: int) -> list[str]:
     return options
 
 
-def kernel_names(source: str) -> tuple[str, ...]:
-    """The kernels a program of ``source`` holds: every one of KERNELS, and those of
-    OPTIONAL_KERNELS its source declares."""
-    return KERNELS + tuple(k for k in OPTIONAL_KERNELS if f" void {k}(" in source)
-
-
-def build(ctx, device, source: str, attempt: int = 0):
-    """(program, {name: kernel}) for a source; ``attempt`` > 0 builds it under a new cache key."""
+def build(ctx, device, source: str, attempt: int = 0, names: tuple[str, ...] = KERNELS):
+    """(program, {name: kernel} of ``names``) for a source; ``attempt`` > 0 builds it under a new
+    cache key."""
     options = build_options(attempt)
     program = cl.Program(ctx, source)
     try:
         with warnings.catch_warnings():         # Intel's compiler always logs; failures are ours to tell
             warnings.simplefilter("ignore", cl.CompilerWarning)
             program.build(options=options, devices=[device])
-        kernels = {k: cl.Kernel(program, k) for k in kernel_names(source)}
+        kernels = {k: cl.Kernel(program, k) for k in names}
     except cl.Error as e:
         f = buildlog.failure(e, f"build on {device.name}, options {' '.join(options)}")
         failed = ProgramError(buildlog.line(f"cannot build on {device.name}: ", f.cause, f.log), f.cause, f.log)

@@ -28,12 +28,11 @@ from brdfcl.device.program import (
     forget_binary,
     keep_attempt,
     keep_binary,
-    kernel_names,
     load_binary,
     remember_pocl_cache,
     repair_pocl_cache,
 )
-from brdfcl.kernels.codegen import KernelOptions, jtj_pairs, n_outputs, render
+from brdfcl.kernels.codegen import KernelOptions, jtj_pairs, kernel_names, n_outputs, render
 from brdfcl.model.compose import Model
 from brdfcl.model.metrics import METRICS
 
@@ -88,8 +87,9 @@ class Engine:
         self.reported = tuple(METRICS)      # the errors kernel's sums, in order (brdfcl.model.metrics)
         self.pairs = jtj_pairs(self.model)
         self.n_out = n_outputs(self.model, len(self.pairs))
+        self.kernel_names = kernel_names(self.model)
         self.program, self.self_test = self._compile(verify)
-        self._kernels = {k: cl.Kernel(self.program, k) for k in kernel_names(self.source)}
+        self._kernels = {k: cl.Kernel(self.program, k) for k in self.kernel_names}
 
     def _compile(self, verify):
         """The program for this source, built once per process and device; a build whose kernels
@@ -101,7 +101,7 @@ class Engine:
         started = time.time_ns() - 2_000_000_000     # file times may lag the clock
         failures: list[ProgramError] = []
         with crash_guard(self.source, self.device, log=_log.warning) as first:
-            kept = load_binary(self.ctx, self.device, self.source, first)
+            kept = load_binary(self.ctx, self.device, self.source, first, self.kernel_names)
             if kept is not None:
                 program, self._kernels = kept
                 result = selftest.check(self) if verify else None
@@ -111,7 +111,7 @@ class Engine:
                 forget_binary(self.device, self.source, first)
             for attempt in (first, first + 1):
                 try:
-                    program, self._kernels = build(self.ctx, self.device, self.source, attempt)
+                    program, self._kernels = build(self.ctx, self.device, self.source, attempt, self.kernel_names)
                 except ProgramError as e:
                     failures.append(e)
                     continue
@@ -236,7 +236,7 @@ class Engine:
     @property
     def has_meat(self) -> bool:
         """Whether this program sums the sandwich's middle term (`meat`; brdfcl.kernels.codegen)."""
-        return "meat" in self._kernels
+        return "meat" in self.kernel_names
 
     def meat(self, cs, values, mats):
         """``M = sum_cells w^2 g g^T`` (n, k, k), ``g = sum_ch r dr/dtheta`` each cell's gradient

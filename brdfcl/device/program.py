@@ -15,13 +15,13 @@ device binary for the next process (brdfcl.device.binaries).
 from __future__ import annotations
 
 from brdfcl.device.binaries import KEEP_BINARIES, binary_path, forget_binary, keep_binary, load_binary
-from brdfcl.device.build import ABI_WARNING, BUILD_OPTIONS, KERNELS, build, build_log, build_options, kernel_names
+from brdfcl.device.build import ABI_WARNING, BUILD_OPTIONS, KERNELS, build, build_log, build_options
 from brdfcl.device.crashguard import crash_guard, keep_attempt
 from brdfcl.device.errors import ProgramError
 from brdfcl.device.poclcache import pocl_cache_dir, remember_pocl_cache, repair_pocl_cache
 from brdfcl.device.soundness import sound_bitcode, sound_elf
 
 __all__ = ["ABI_WARNING", "BUILD_OPTIONS", "KEEP_BINARIES", "KERNELS", "ProgramError", "binary_path", "build",
-           "build_log", "build_options", "kernel_names", "crash_guard", "forget_binary", "keep_attempt", "keep_binary",
+           "build_log", "build_options", "crash_guard", "forget_binary", "keep_attempt", "keep_binary",
            "load_binary", "pocl_cache_dir", "remember_pocl_cache", "repair_pocl_cache", "sound_bitcode",
            "sound_elf"]

@@ -99,9 +99,14 @@ MEAT_MAX_FREE = 32
 each work-item); a larger model's M is summed by the float64 reference (brdfcl.optim.uncertainty)."""
 
 
-def has_meat(model: Model) -> bool:
-    """Whether ``model``'s program holds the ``meat`` kernel."""
-    return model.n_free <= MEAT_MAX_FREE
+KERNELS = ("target", "loss", "grad", "jtj", "errors", "predict")
+"""The kernels of every program (model.cl.mako)."""
+
+
+def kernel_names(model: Model) -> tuple[str, ...]:
+    """The kernels ``model``'s program holds: KERNELS, and ``meat`` up to MEAT_MAX_FREE free
+    parameters."""
+    return KERNELS + (("meat",) if model.n_free <= MEAT_MAX_FREE else ())
 
 
 LOOP_FROM = 4
@@ -190,7 +195,8 @@ def render(model: Model, opt: KernelOptions) -> str:
         inline_names=inline_math.NAMES,
         slots=model.slots, n_slots=model.n_params, n_ch=model.n_channels,
         consts=["K_" + k.replace(".", "_") for k in model.const_names],
-        n_prm=model.n_params + len(model.const_names), n_free=model.n_free, meat=has_meat(model),
+        n_prm=model.n_params + len(model.const_names), n_free=model.n_free,
+        meat="meat" in kernel_names(model), n_meat=n_outputs(model, len(pairs))["meat"],
         lines=em.lines, value=em.value, jac=em.jac, pairs=pairs, ch_loop=lem is not None,
         loop_lines=lem.lines if lem else [], body=lem.body if lem else [],
         loop_value=lem.loop_value if lem else [],

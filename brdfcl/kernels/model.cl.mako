@@ -343,8 +343,8 @@ ${reduce_and_write(['acc_l'] + ['acc_g%d' % k for k in range(n_free)] + ['acc_h%
 __kernel __attribute__((reqd_work_group_size(1, ${wg}, 1))) void meat(KARGS)
 {
 ${prologue()}
-    real_v acc_m[${n_free * (n_free + 1) // 2}];
-    for (int k = 0; k < ${n_free * (n_free + 1) // 2}; k++) acc_m[k] = 0;
+    real_v acc_m[${n_meat}];
+    for (int k = 0; k < ${n_meat}; k++) acc_m[k] = 0;
     for (int v = v0 + lid; v < v1; v += ${wg}) {
 ${cell_and_model()}
         real_v gc[${n_free}];
@@ -381,7 +381,7 @@ ${residuals()}
         }
 % endfor
     }
-${reduce_and_write([], [('acc_m', n_free * (n_free + 1) // 2)])}
+${reduce_and_write([], [('acc_m', n_meat)])}
 }
 % endif
 
