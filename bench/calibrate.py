@@ -116,22 +116,23 @@ def epochs_markdown(out):
          f"diffraction), trained together for {max(epochs)} epochs ({info['training_s'] / 60:.1f} min), tabulated "
          f"after {', '.join(map(str, epochs))} epochs; total {info['total_s'] / 60:.1f} min. Verdicts under the "
          f"code's rule (brdfcl.analysis.analyze.RULE).", "",
-         "| case | table | training loss | gradient score (cells) | wavelength ratio | lobe gain | verdict |",
-         "| --- | --- | --- | --- | --- | --- | --- |"]
+         "| case | table | training loss | gradient score (cells) | law ratio | collapse ratio | lobe gain | verdict |",
+         "| --- | --- | --- | --- | --- | --- | --- | --- |"]
     for name in names:
         for r in rows:
             if r["case"] == name:
                 v = RULE.verdict(power.rule_margins(r, RULE))
                 loss = float(r["train_loss"]) if r.get("train_loss") not in ("", None) else float("nan")
                 L.append(f"| {name} | {r['table']} | {_fmt(loss, '.4g')} | {_fmt(r['grad_score'])} "
-                         f"({r['grad_cells']}) | {_fmt(r['wl_ratio'])} | {_fmt(r['lobe_gain'], '+.3f')} | {v} |")
+                         f"({r['grad_cells']}) | {_fmt(r['law_ratio'], '.4f')} | {_fmt(r['wl_ratio'])} | "
+                         f"{_fmt(r['lobe_gain'], '+.3f')} | {v} |")
     cal_rows = read_rows(out / "cases.csv")
     if cal_rows:
         thr = {t: power.test_threshold(numeric_rows(cal_rows), t) for t in power.TESTS}
         L += ["", "Detections of the diffraction cases and false positives of the others, at each test's "
               "threshold of calibration.md and under the code's rule:", "",
-              "| table | gradient | wavelength | lobe | verdict | mean abs. change of the gradient score "
-              f"against {max(epochs)} epochs |", "| --- | --- | --- | --- | --- | --- |"]
+              "| table | " + " | ".join(power.TESTS) + " | verdict | mean abs. change of the gradient score "
+              f"against {max(epochs)} epochs |", "| --- " * (len(power.TESTS) + 3) + "|"]
         ref = {r["case"]: r for r in rows if r["table"] == f"epochs {max(epochs)}"}
         for table in ["original"] + [f"epochs {e}" for e in epochs]:
             sel = [r for r in rows if r["table"] == table]
@@ -172,7 +173,8 @@ def proxies(out, batch=10):
                          "baseline_verdict": b.get("verdict", ""), "legacy_verdict": LEGACY.verdict(m_old),
                          "verdict": a.verdict, "verdict_by": RULE.binding(m_new),
                          "grad_score": a.gradient.mean_score, "grad_cells": int(a.gradient.n_cells.sum()),
-                         "wl_ratio": a.wavelength.ratio, "lobe_gain": m_new["lobe"] + RULE.lobe_gain,
+                         "wl_ratio": a.wavelength.ratio, "law_ratio": a.law_ratio,
+                         "lobe_gain": m_new["lobe"] + RULE.lobe_gain,
                          **{f"margin_{k}": v for k, v in m_new.items()},
                          "fitted_share": fitted_share(a),
                          "rmse_log_full": a.fits["full"].errors["rmse_log"],
@@ -200,8 +202,11 @@ def why(r, rule, name):
         out.append(f"gradient {r['grad_score']:.2f} < {rule.gradient_score:g}")
     elif rule.gradient_required and not np.isfinite(m["gradient"]):
         out.append(f"gradient undecided ({r['grad_cells']} cells)")
+    ratio = rule.wavelength_ratio(r["law_ratio"], r["wl_ratio"])
     if m["wavelength"] <= 0:
-        out.append(f"ratio {r['wl_ratio']:.2f} >= {rule.wavelength_decisive:g}")
+        out.append(f"{rule.wavelength_test} ratio {ratio:.3f} >= {rule.wavelength_decisive:g}")
+    elif rule.wavelength_required and not np.isfinite(m["wavelength"]):
+        out.append("no law ratio")
     return f"{name}: " + (", ".join(out) if out else "passes")
 
 
@@ -210,8 +215,8 @@ def proxies_markdown(out, small=0.05):
     how many verdicts hang on a small margin."""
     rows = read_rows(out / "proxies.csv")
     for r in rows:
-        for k in ("grad_score", "wl_ratio", "lobe_gain", "margin_gradient", "margin_wavelength", "margin_lobe",
-                  "fitted_share"):
+        for k in ("grad_score", "wl_ratio", "law_ratio", "lobe_gain", "margin_gradient", "margin_wavelength",
+                  "margin_lobe", "fitted_share"):
             r[k] = float(r[k]) if r.get(k) not in ("", None) else float("nan")
         r["grad_cells"] = int(r["grad_cells"])
         r["share"] = float("nan")
@@ -236,21 +241,22 @@ def proxies_markdown(out, small=0.05):
     changed = [r for r in rows if r["verdict"] != (r["baseline_verdict"] or r["legacy_verdict"])]
     L += ["", f"## Verdicts that change ({len(changed)}) and why", "",
           "| material | class | baseline | calibrated | why | least margin | gradient score (cells) | "
-          "wavelength ratio | lobe gain | fitted share |", "| --- " * 10 + "|"]
+          "law ratio | collapse ratio | lobe gain | fitted share |", "| --- " * 11 + "|"]
     for r in changed:
         L.append(f"| {r['material']} | {r['class']} | {r['baseline_verdict']} | {r['verdict']} | "
                  f"{why(r, LEGACY, 'legacy')}; {why(r, RULE, 'calibrated')} | {r['verdict_by']} | "
-                 f"{_fmt(r['grad_score'])} ({r['grad_cells']}) | {_fmt(r['wl_ratio'])} | "
-                 f"{_fmt(r['lobe_gain'], '+.3f')} | {_fmt(r['fitted_share'], '.2f')} |")
+                 f"{_fmt(r['grad_score'])} ({r['grad_cells']}) | {_fmt(r['law_ratio'], '.4f')} | "
+                 f"{_fmt(r['wl_ratio'])} | {_fmt(r['lobe_gain'], '+.3f')} | {_fmt(r['fitted_share'], '.2f')} |")
     metals = [r for r in rows if r["class"] == "metal"]
     L += ["", "The metals, with the diffraction share of the wide-angle energy in their full fits (the calibration's "
           "measure; a fit's share is not the material's, but it says where the halo the tests look for would sit "
           "on the power curves):", "",
-          "| metal | calibrated verdict | fitted share | gradient score (cells) | wavelength ratio | lobe gain |",
-          "| --- | --- | --- | --- | --- | --- |"]
+          "| metal | calibrated verdict | fitted share | gradient score (cells) | law ratio | collapse ratio | "
+          "lobe gain |", "| --- | --- | --- | --- | --- | --- | --- |"]
     for r in metals:
         L.append(f"| {r['material']} | {r['verdict']} | {_fmt(r['fitted_share'], '.2f')} | {_fmt(r['grad_score'])} "
-                 f"({r['grad_cells']}) | {_fmt(r['wl_ratio'])} | {_fmt(r['lobe_gain'], '+.3f')} |")
+                 f"({r['grad_cells']}) | {_fmt(r['law_ratio'], '.4f')} | {_fmt(r['wl_ratio'])} | "
+                 f"{_fmt(r['lobe_gain'], '+.3f')} |")
     diff = [r for r in rows if r["verdict"] == "diffraction"]
     thin = [r for r in diff if min(r["margin_lobe"], r["margin_gradient"]) < small]
     L += ["", f"Of the {len(diff)} `diffraction` verdicts, {len(thin)} hang on a lobe margin (gain) or a gradient "

@@ -78,7 +78,7 @@ def test_demo_verdicts_and_outputs(demo_db, tmp_path):
     assert "diffraction" in res["synth-smooth-metal"].final_model
     assert res["synth-smooth-metal"].peak_share_diffraction < 0.5    # the peak is CT's
     rows = list(csv.DictReader(open(tmp_path / "analysis.csv")))
-    assert len(rows) == 5 and {"verdict", "selected_lobes", "grad_score_g", "wavelength_ratio",
+    assert len(rows) == 5 and {"verdict", "selected_lobes", "grad_score_g", "law_ratio", "collapse_ratio",
                                "rmse_log_no_diffraction"} <= set(rows[0])
     import OpenEXR
     with OpenEXR.File(str(tmp_path / "synth-smooth-metal.exr")) as f:

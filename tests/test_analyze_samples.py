@@ -93,7 +93,7 @@ def test_the_report_says_what_was_run(analysed):
     for r in rows.values():
         assert r["gradient_test"] == GRADIENT_NOT_RUN and r["margin_gradient"] == ""
         assert r["data"] == "1500 scattered samples, 11 bands"
-        assert float(r["wavelength_ratio"]) > 0 and r["lambda_exponent"] != ""
+        assert float(r["law_ratio"]) > 0 and int(r["law_cells"]) > 100 and r["lambda_exponent"] != ""
     res, _ = analysed
     for name in rows:
         mask, _ = in_plane(res[name].samples)
@@ -118,20 +118,14 @@ def test_krylon_is_analysed(krylon, tmp_path):
     assert a.row()["gradient_test"] == GRADIENT_NOT_RUN
 
 
-def test_the_wavelength_law_statistic_and_rule():
-    """The law ratio of a material's fits and the rule that reads it, without fitting: below 1
-    the wavelength enters as diffraction predicts; the grey bands stay distinct."""
-    from types import SimpleNamespace
+def test_the_sample_rule_reads_the_law_as_the_table_rule():
+    """A verdict means one thing: the samples' rule is the tables' rule with the law required and
+    the gradient test (not run on samples) not."""
+    from dataclasses import replace
 
-    from brdfcl.analysis.samples import GREY, grey_lambdas, law_ratio
-
-    def fit(rmse, ok=True):
-        return SimpleNamespace(errors={"rmse_log": rmse}, success=ok)
-    assert law_ratio({"full": fit(0.01), GREY: fit(0.02)}) == pytest.approx(0.5)
-    assert np.isnan(law_ratio({"full": fit(0.01)})) and np.isnan(law_ratio({"full": fit(0.01), GREY: fit(0.02, False)}))
-    grey = grey_lambdas((0.4, 0.5, 0.6, 0.7))
-    assert len(set(grey)) == 4 and max(grey) / min(grey) - 1 < 1e-4 and grey[0] == 0.6
-    keep = SAMPLE_RULE.margins(float("nan"), 0, 0.5, 0.3)
-    assert SAMPLE_RULE.verdict(keep) == "diffraction"
-    assert SAMPLE_RULE.verdict(SAMPLE_RULE.margins(float("nan"), 0, 1.2, 0.3)) == "none"      # the law fits worse
-    assert SAMPLE_RULE.verdict(SAMPLE_RULE.margins(float("nan"), 0, 0.5, -0.1)) == "none"     # no lobe kept
+    from brdfcl.analysis.analyze import RULE
+    assert SAMPLE_RULE.wavelength_test == "law" and SAMPLE_RULE.wavelength_required
+    assert replace(SAMPLE_RULE, wavelength_decisive=RULE.wavelength_decisive, gradient_required=RULE.gradient_required,
+                   wavelength_required=RULE.wavelength_required, wavelength_test=RULE.wavelength_test) == RULE
+    assert SAMPLE_RULE.verdict(SAMPLE_RULE.margins(float("nan"), 0, 0.5, 0.3)) == "diffraction"
+    assert SAMPLE_RULE.verdict(SAMPLE_RULE.margins(float("nan"), 0, float("nan"), 0.3)) == "none"

@@ -153,6 +153,7 @@ def test_nbrdf_network_and_geometry_are_merl_proxy_s():
 # --- power and thresholds -----------------------------------------------------------------------
 def _row(share, table="original", score=0.5, cells=100, ratio=1.0, gain=0.1, cls="x"):
     return {"share": share, "table": table, "grad_score": score, "grad_cells": cells, "wl_ratio": ratio,
+            "law_ratio": ratio,
             "lobe_gain": gain, "class": cls, "case": f"{cls}{share}{score}{gain}"}
 
 

@@ -29,7 +29,7 @@ def smooth_metal():
     slices = {"measured": measured, "full": full, "diffuse_diffraction": 0.6 * full, "ct": 0.4 * full}
     return SimpleNamespace(name="synth-smooth-metal", gradient=gradient_test(brdf),
                            wavelength=wavelength_check(brdf, [p / np.pi for p in params["diffuse.rho"]]),
-                           specs={"full": SPEC}, slices=slices,
+                           specs={"full": SPEC}, slices=slices, law_ratio=0.8765,
                            fits={"full": SimpleNamespace(errors={"rmse_log": 0.1})})
 
 
@@ -85,6 +85,7 @@ def test_wavelength_figure_draws_them(smooth_metal, tmp_path):
     labels = [t.get_text() for t in fig.legends[0].get_texts()]
     assert [lab[0] for lab in labels[:3]] == list("RGB")
     assert f"{smooth_metal.wavelength.ratio:.2f}" in fig._suptitle.get_text()
+    assert f"{smooth_metal.law_ratio:.3f}" in fig._suptitle.get_text()
 
 
 def test_gradient_figure_shows_vote_and_angle_per_channel(smooth_metal, tmp_path):
@@ -133,7 +134,7 @@ def test_index_fits_the_page(smooth_metal, tmp_path):
     a = SimpleNamespace(name="synth-smooth-metal", row=lambda: {
         "material": "synth-smooth-metal", "verdict": "diffraction", "selected_lobes": SPEC,
         "final_model": SPEC, **{c: "0.12345" for c in (
-            "grad_score_g", "grad_cells", "grad_band_deg_g", "wavelength_ratio", "rmse_log_full",
+            "grad_score_g", "grad_cells", "grad_band_deg_g", "law_ratio", "collapse_ratio", "rmse_log_full",
             "rmse_log_no_diffraction", "rmse_log_no_ct", "peak_share_diffraction", "rmse_log_full_free",
             "peak_share_free")}})
     write_index(tmp_path, [a])

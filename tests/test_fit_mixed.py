@@ -81,7 +81,7 @@ def test_analyze_takes_the_same_mixed_folder(mixed, tmp_path):
     rows = {row["material"]: row for row in csv.DictReader((out / "analysis.csv").open())}
     assert set(rows) == {"krylon_blue", "synth-fabric"}
     k, m = rows["krylon_blue"], rows["synth-fabric"]
-    assert k["gradient_test"].startswith("not run") and k["grad_cells"] == "" and float(k["wavelength_ratio"]) > 0
+    assert k["gradient_test"].startswith("not run") and k["grad_cells"] == "" and float(k["law_ratio"]) > 0
     assert m["gradient_test"] == "" and m["grad_cells"] != ""
     assert (out / "synth-fabric.exr").exists() and not (out / "krylon_blue.exr").exists()
 

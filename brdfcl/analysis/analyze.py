@@ -1,12 +1,14 @@
 """Which physical effect makes which part of each measured BRDF (docs/spec.md section 5).
 
-For every material: the gradient test (brdfcl.analysis.gradient), the wavelength check
-(brdfcl.analysis.wavelength), and the lobe comparison (brdfcl.optim.selection: fits with and without
-the diffraction and Cook-Torrance lobes, sharing one load of the data).  Each test is
-necessary, none sufficient (a broad Cook-Torrance lobe can tilt the level lines like
-f does, and a misfitting CT lobe can be patched by a diffraction lobe), so the verdict
-is ``diffraction`` only when the lobe comparison keeps the diffraction lobe, the gradient test
-decides and agrees, and the wavelength check does not contradict it; ``none`` otherwise (``Rule``).
+For every material: the gradient test (brdfcl.analysis.gradient), the wavelength law
+(brdfcl.analysis.law: the full model fitted with each channel's wavelength and with one), the
+lobe comparison (brdfcl.optim.selection: fits with and without the diffraction and Cook-Torrance
+lobes, sharing one load of the data), and the curve collapse (brdfcl.analysis.wavelength), which
+pictures the law but does not decide.  Each test is necessary, none sufficient (a broad
+Cook-Torrance lobe can tilt the level lines like f does, and a misfitting CT lobe can be patched
+by a diffraction lobe), so the verdict is ``diffraction`` only when the lobe comparison keeps the
+diffraction lobe, the gradient test decides and agrees, and the wavelength law does not
+contradict it; ``none`` otherwise (``Rule``).
 A material with verdict ``none`` gets its final fit without the diffraction lobe.
 
 The thresholds (``RULE``) are chosen by the calibration (``brdfcl calibrate``,
@@ -33,6 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from brdfcl.analysis.gradient import GradientMap, gradient_test
+from brdfcl.analysis.law import GREY, NO_TEST, LawTest, table_law
 from brdfcl.analysis.wavelength import WavelengthCheck, wavelength_check
 from brdfcl.data.geometry import bin_centres, directions
 from brdfcl.model.compose import Model
@@ -45,7 +48,9 @@ MIN_DECIDABLE = 30            # gradient test cells below which it is inconclusi
 GRADIENT_SCORE = 0.2          # gradient test: share of decidable cells closer to grad f
 GRADIENT_REQUIRED = True      # an inconclusive gradient test gives none
 LOBE_GAIN = 0.0               # lobe comparison: ln(penalised error without / with diffraction)
-WAVELENGTH_VETO = 5.0         # wavelength ratio at or above which the check contradicts
+WAVELENGTH_VETO = 5.0         # wavelength ratio at or above which the wavelength test contradicts
+WAVELENGTH_REQUIRED = False   # an undecided wavelength test gives none
+WAVELENGTH_TEST = "collapse"  # the ratio the rule was calibrated on (Rule.wavelength_test)
 COMPARED = ("full", "no_diffraction", "no_ct")
 TESTS = ("gradient", "wavelength", "lobe")
 
@@ -56,8 +61,9 @@ class Rule:
     diffraction lobe by more than ``lobe_gain`` (ln of the penalised error without diffraction over
     the best with it; 0: brdfcl.optim.selection's choice), and neither the gradient test (where at
     least ``min_cells`` cells decide, score >= ``gradient_score``; with ``gradient_required`` it must
-    decide) nor the wavelength check (ratio < ``wavelength_decisive``; with ``wavelength_required``
-    it must decide) contradicts it where it can decide.  The defaults are the calibrated rule (the
+    decide) nor the wavelength test (ratio < ``wavelength_decisive``, of the wavelength law or of the
+    curve collapse as ``wavelength_test`` says; with ``wavelength_required`` it must decide)
+    contradicts it where it can decide.  The defaults are the calibrated rule (the
     calibration compares it with the rule before it, brdfcl.analysis.calibration_summary.LEGACY);
     scattered samples are judged by brdfcl.analysis.samples.SAMPLE_RULE.
 
@@ -71,7 +77,13 @@ class Rule:
     wavelength_decisive: float = WAVELENGTH_VETO
     lobe_gain: float = LOBE_GAIN
     gradient_required: bool = GRADIENT_REQUIRED   # an undecided gradient test (too few cells) says none
-    wavelength_required: bool = False             # an undecided wavelength check says none
+    wavelength_required: bool = WAVELENGTH_REQUIRED   # an undecided wavelength law says none
+    wavelength_test: str = WAVELENGTH_TEST        # whose ratio: "law" (brdfcl.analysis.law) or "collapse"
+
+    def wavelength_ratio(self, law_ratio: float, collapse_ratio: float) -> float:
+        """The ratio this rule's wavelength threshold reads: the law's, or (the rule before the law
+        test, kept to compare) the curve collapse's."""
+        return collapse_ratio if self.wavelength_test == "collapse" else law_ratio
 
     def margins(self, grad_score, grad_cells, wl_ratio, lobe_gain) -> dict:
         with np.errstate(invalid="ignore", divide="ignore"):
@@ -124,6 +136,12 @@ class Analysis:
     peak_share_free: float                # the same for the fit without the peak constraint
 
     rule: Rule = RULE
+    law: LawTest = NO_TEST                # the wavelength law's two fits compared (brdfcl.analysis.law)
+
+    @property
+    def law_ratio(self) -> float:
+        """The law's statistic (LawTest.ratio): below 1, the wavelength enters as diffraction predicts."""
+        return self.law.ratio
 
     def margins_raw(self) -> dict:
         """{test: margin} under the rule it was judged by (Rule.margins)."""
@@ -166,9 +184,10 @@ class MaterialAnalysis(Analysis):
             out[f"grad_score_{ch}"] = _fmt(g.score[c])
         out["grad_cells"] = int(g.n_cells.sum())
         out["grad_band_deg_g"] = f"{band[0]:.1f}-{band[1]:.1f}" if band else ""
+        out.update(law_columns(self))
         out["wavelength_spread"] = _fmt(w.spread)
         out["wavelength_spread_f0"] = _fmt(w.spread_f0)
-        out["wavelength_ratio"] = _fmt(w.ratio)
+        out["collapse_ratio"] = _fmt(w.ratio)
         return {**out, **fit_columns(self)}
 
 
@@ -200,6 +219,14 @@ def fit_columns(a, extra: dict | None = None) -> dict:
     out["peak_share_diffraction"] = _fmt(a.peak_share_diffraction)
     out["peak_share_free"] = _fmt(a.peak_share_free)
     return out
+
+
+def law_columns(a) -> dict:
+    """The analysis.csv columns of the wavelength law (brdfcl.analysis.law), the same for tables
+    and samples: its ratio, the two wide-angle errors, the cells they cover, the grey fit's rmse_log."""
+    grey = a.fits.get(GREY)
+    return {"law_ratio": _fmt(a.law.ratio), "law_error": _fmt(a.law.error), "law_error_grey": _fmt(a.law.error_grey),
+            "law_cells": a.law.n_cells, "rmse_log_full_grey": _fmt(grey.errors["rmse_log"]) if grey else ""}
 
 
 def _fmt(x):
@@ -258,12 +285,14 @@ def lobe_gain(penalised: dict, specs: dict) -> float:
 def margins_of(a: MaterialAnalysis, rule: Rule | None = None) -> dict:
     """{test: margin} of a MaterialAnalysis under a rule (default: the one it was judged by)."""
     rule = rule or a.rule
-    return rule.margins(a.gradient.mean_score, int(a.gradient.n_cells.sum()), a.wavelength.ratio,
-                        lobe_gain(a.penalised, a.specs))
+    return rule.margins(a.gradient.mean_score, int(a.gradient.n_cells.sum()),
+                        rule.wavelength_ratio(a.law_ratio, a.wavelength.ratio), lobe_gain(a.penalised, a.specs))
 
 
 def analyze_material(name, brdf, fits, specs, rule: Rule | None = None) -> MaterialAnalysis:
-    """Analyse one material from its fits (variant key -> FitResult) under ``rule`` (default RULE)."""
+    """Analyse one material from its fits (variant key -> FitResult; brdfcl.analysis.law.GREY:
+    the full model at one wavelength, without which the law does not decide) under ``rule``
+    (default RULE)."""
     rule = rule or RULE
     errors = {k: r.errors["rmse_log"] for k, r in fits.items() if r.success and k in COMPARED}
     sel, pen = select(errors, {k: specs[k] for k in errors})
@@ -273,12 +302,14 @@ def analyze_material(name, brdf, fits, specs, rule: Rule | None = None) -> Mater
     diffuse = [sum(full.params.get(lb.slot_name("rho", ch), 0.0) for lb in full_model.lobes_with_role("diffuse"))
                / np.pi for ch in range(3)]
     wl = wavelength_check(brdf, diffuse, full_model.lambdas)
-    m = rule.margins(gm.mean_score, int(gm.n_cells.sum()), wl.ratio, lobe_gain(pen, specs))
+    law = table_law(fits, specs["full"], full_model.lambdas, brdf)
+    m = rule.margins(gm.mean_score, int(gm.n_cells.sum()), rule.wavelength_ratio(law.ratio, wl.ratio),
+                     lobe_gain(pen, specs))
     verdict = rule.verdict(m)
     free = fits.get("full_free")
     return MaterialAnalysis(name, verdict, sel, specs[final_key(verdict, sel, fits, specs)], fits, specs, pen,
                             peak_share(specs["full"], full.params),
                             peak_share(specs["full"], free.params) if free else float("nan"), rule=rule,
-                            gradient=gm, wavelength=wl)
+                            law=law, gradient=gm, wavelength=wl)
 
 

@@ -37,12 +37,12 @@ from __future__ import annotations
 import time
 import zlib
 from dataclasses import dataclass, field, replace
-from functools import lru_cache
 
 import numpy as np
 
 from brdfcl.analysis.analyze import analyze_material, margins_of, peak_share
 from brdfcl.analysis.gradient import PHI_BINS
+from brdfcl.analysis.law import GREY, WIDE_STRIDE, grey_fitters, wide_cells
 from brdfcl.data.geometry import table_geometry
 from brdfcl.data.merl import N_PD, N_TD, N_TH, SCALE, MerlTable
 from brdfcl.model.compose import Model
@@ -53,6 +53,8 @@ from brdfcl.optim.selection import variants
 
 POWER_CLASSES = ("halo-hp", "halo-abc", "halo-gauss")
 NULL_CLASSES = ("metal-ggx", "metal-other", "rough-metal", "plastic", "layered", "fabric")
+COLOUR_CLASSES = ("thin-film", "channel-roughness", "metal-dispersion")
+"""No-diffraction classes whose colour changes with angle for reasons other than diffraction."""
 SHARES = (0.02, 0.05, 0.1, 0.2, 0.35, 0.5, 0.7, 0.9)
 
 
@@ -78,6 +80,7 @@ class Case:
     params: dict                 # {name: scalar or (r, g, b)} as brdfcl.model.synth.DEMO
     effects: Effects
     seed: int
+    film: tuple | None = None    # (index, thickness um, substrate index) of a film on the facets
 
     @property
     def has_diffraction(self):
@@ -92,7 +95,8 @@ class Plan:
     shares: tuple = SHARES
     reps: dict = field(default_factory=lambda: {"halo-hp": 6, "halo-abc": 3, "halo-gauss": 3})
     nulls: dict = field(default_factory=lambda: {"metal-ggx": 14, "metal-other": 12, "rough-metal": 16,
-                                                 "plastic": 12, "layered": 16, "fabric": 8})
+                                                 "plastic": 12, "layered": 16, "fabric": 8, "thin-film": 10,
+                                                 "channel-roughness": 10, "metal-dispersion": 10})
     roundtrip_every: int = 2          # diffraction cases: every n-th of each class and share
     roundtrip_every_null: int = 1     # no-diffraction cases: the false positives on proxies hang on them
     seed: int = 0
@@ -194,25 +198,70 @@ def _draw(cls, share, rng, name) -> Case:
         p = {"diffuse.rho": _tint(rng, _loguniform(rng, 0.02, 0.5), 0.6),
              "ct.rho": _tint(rng, rng.uniform(0.6, 1.0), 0.02), "ct.alpha": _loguniform(rng, 0.01, 0.3),
              "ct.eta": rng.uniform(1.4, 1.7)}
+    elif cls in COLOUR_CLASSES:
+        return _draw_colour(cls, rng, name, diffuse, metal, seed)
     else:
-        raise ValueError(f"unknown calibration class '{cls}'; valid: {', '.join(POWER_CLASSES + NULL_CLASSES)}")
+        raise ValueError(f"unknown calibration class '{cls}'; valid: "
+                         f"{', '.join(POWER_CLASSES + NULL_CLASSES + COLOUR_CLASSES)}")
     return Case(name, cls, float(share), spec, p, draw_effects(rng), seed)
 
 
+METALS = {"gold": ((0.17, 0.45, 1.40), (3.15, 2.40, 1.85)), "copper": ((0.21, 1.00, 1.20), (3.67, 2.58, 2.40)),
+          "brass": ((0.44, 0.53, 1.10), (3.70, 2.60, 1.90)), "aluminium": ((1.50, 0.96, 0.62), (7.70, 6.40, 5.40)),
+          "iron": ((2.90, 2.90, 2.50), (3.00, 2.90, 2.80))}
+"""Complex indices (eta, k) at the R, G, B wavelengths of metals whose reflectance changes colour
+with angle (gold, copper, brass most; PBRT's and refractiveindex.info's tables, rounded)."""
+
+
+def _draw_colour(cls, rng, name, diffuse, metal, seed) -> Case:
+    """A no-diffraction material whose colour changes with angle by other means: a thin dielectric
+    film on the facets of a Cook-Torrance lobe (interference: the phase follows the angle inside
+    the film, not 2 sin th cos td), a roughness per channel (three lobes, one per channel, as SGD
+    fits it), or a metal's own Fresnel dispersion (the exact conductor term, per-channel eta, k)."""
+    ndf = "ggx" if rng.random() < 0.5 else "beckmann"
+    if cls == "thin-film":
+        spec = f"diffuse+{ndf}:smith:none"
+        p = {**diffuse, "ct.rho": _tint(rng, rng.uniform(0.6, 1.0), 0.02), "ct.alpha": _loguniform(rng, 0.01, 0.2)}
+        film = (rng.uniform(1.8, 2.5), rng.uniform(0.15, 0.6), rng.uniform(1.45, 1.6))
+        return Case(name, cls, 0.0, spec, p, draw_effects(rng), seed, film=film)
+    if cls == "channel-roughness":
+        spec = f"diffuse+{ndf}:smith:schlick+{ndf}:smith:schlick+{ndf}:smith:schlick"
+        alpha = _loguniform(rng, 0.01, 0.2)
+        p = dict(diffuse)
+        for c, pre in enumerate(("ct", "ct2", "ct3")):
+            rho = [0.0, 0.0, 0.0]
+            rho[c] = metal["ct.rho"][c]
+            p.update({f"{pre}.rho": tuple(rho), f"{pre}.F0": metal["ct.F0"],
+                      f"{pre}.alpha": alpha * (1.0 if c == 1 else _loguniform(rng, 0.6, 1.6))})
+        return Case(name, cls, 0.0, spec, p, draw_effects(rng), seed)
+    eta, k = METALS[list(METALS)[int(rng.integers(len(METALS)))]]
+    p = {**diffuse, "ct.rho": _tint(rng, rng.uniform(0.6, 1.0), 0.05),
+         "ct.alpha": _loguniform(rng, 0.006, 0.1),
+         "ct.eta": tuple(float(x * rng.uniform(0.9, 1.1)) for x in eta),
+         "ct.k": tuple(float(x * rng.uniform(0.9, 1.1)) for x in k)}
+    return Case(name, cls, 0.0, f"diffuse+{ndf}:smith:conductor", p, draw_effects(rng), seed)
+
+
+def film_reflectance(theta, lambdas, film) -> np.ndarray:
+    """(C, n) unpolarised reflectance of a thin dielectric film (index, thickness in um) on a
+    dielectric substrate (index), in air, at incidence angles ``theta`` (n,) and wavelengths
+    ``lambdas`` (C,) in um: the Airy sum of the two interfaces' Fresnel amplitudes."""
+    n1, d, n2 = film
+    s0 = np.sin(theta)
+    c0 = np.cos(theta)
+    c1 = np.sqrt(1.0 - (s0 / n1) ** 2)
+    c2 = np.sqrt(1.0 - (s0 / n2) ** 2)
+    phase = np.exp(4j * np.pi * n1 * d * c1[None, :] / np.asarray(lambdas, dtype=float)[:, None])
+    out = 0.0
+    for r01, r12 in (((c0 - n1 * c1) / (c0 + n1 * c1), (n1 * c1 - n2 * c2) / (n1 * c1 + n2 * c2)),
+                     ((n1 * c0 - c1) / (n1 * c0 + c1), (n2 * c1 - n1 * c2) / (n2 * c1 + n1 * c2))):
+        r = (r01 + r12 * phase) / (1.0 + r01 * r12 * phase)
+        out = out + 0.5 * np.abs(r) ** 2
+    return np.asarray(out)
+
+
 # --- synthesis ----------------------------------------------------------------------------------
-@lru_cache(maxsize=2)
-def wide_cells(stride=5):
-    """Cells, table indices and measure x cos theta_i of the wide-angle region (the gradient test's),
-    every stride-th cell."""
-    g = table_geometry()
-    th, td = g.theta_h, g.theta_d
-    ok = (g.above_horizon & (th >= np.radians(5.0)) & (td <= np.radians(75.0))
-          & (g.cos_i >= np.cos(np.radians(80.0))) & (g.cos_o >= np.cos(np.radians(80.0))))
-    idx = np.flatnonzero(ok)[::stride]
-    return Cells.from_geometry(g, idx), idx, g.weight[idx] * g.cos_i[idx]
-
-
-def lobe_energies(model: Model, values, stride=5):
+def lobe_energies(model: Model, values, stride=WIDE_STRIDE):
     """{role: (C,) wide-angle energy} of a model's lobes grouped by role."""
     cells, _, w = wide_cells(stride)
     params = model.as_dict(values)
@@ -258,16 +307,25 @@ def measure(table, effects: Effects, seed):
 def synthesize(case: Case, index=None):
     """(clean table, measured table), each (3, N_CELLS) in 1/sr, NaN where missing; with ``index``
     (table indices) only those cells are tabulated, the rest NaN (e.g. ``SLICE``, all that the
-    gradient test and the wavelength check read, for quick checks)."""
+    gradient test and the wavelength check read, for quick checks).  A case with a film has its
+    reflection lobe's facets reflect as the film does (``film_reflectance`` at theta_d, the
+    angle of incidence on a facet) instead of with F = 1."""
     model, v = case_values(case)
-    if index is None:
-        clean = tabulate(model, v)
-    else:
-        g = table_geometry()
-        index = index[g.above_horizon[index]]
-        clean = np.full((model.n_channels, g.theta_h.size), np.nan)
-        clean[:, index] = model.reference(Cells.from_geometry(g, index), v, jacobian=False)
+    clean = _table(model, v, index)
+    if case.film is not None:
+        facets = _table(model, model.only_lobes(model.as_dict(v), model.prefixes_with_role("reflection")), index)
+        clean = clean + facets * (film_reflectance(table_geometry().theta_d, model.lambdas, case.film) - 1.0)
     return clean, measure(clean, case.effects, case.seed)
+
+
+def _table(model: Model, values, index=None):
+    if index is None:
+        return tabulate(model, values)
+    g = table_geometry()
+    index = index[g.above_horizon[index]]
+    out = np.full((model.n_channels, g.theta_h.size), np.nan)
+    out[:, index] = model.reference(Cells.from_geometry(g, index), values, jacobian=False)
+    return out
 
 
 def slice_index():
@@ -292,6 +350,7 @@ class Compared:
         self.fitters = {k: Fitter(replace(opts, model=s, fixed={}, ct_peak=True)) for k, s in self.specs.items()}
         base = self.fitters["full"]
         self.fitters["full_local"] = Fitter(replace(base.opts, ct_peak_global=False), engine=base.engine)
+        self.fitters.update(grey_fitters(base, base.model.lambdas, ct_peak=True))
         for f in self.fitters.values():
             f.assess_results = False            # standard errors and albedo: no verdict reads them
 
@@ -305,8 +364,9 @@ class Compared:
             fits[k] = {r.name: r for r in f.fit_loaded(loaded)}
             if log:
                 log(f"  fitted {len(loaded.names)} with {k} in {time.perf_counter() - t:.1f} s")
-        other = fits.pop("full_local")
-        fits["full"] = {n: (r if r.loss <= other[n].loss else other[n]) for n, r in fits["full"].items()}
+        for key in ("full", GREY):
+            other = fits.pop(key + "_local")
+            fits[key] = {n: (r if r.loss <= other[n].loss else other[n]) for n, r in fits[key].items()}
         return fits
 
 
@@ -319,6 +379,8 @@ def statistics(a) -> dict:
     with_d = [pen[k] for k in pen if "diffraction" in a.specs[k]]
     without = [pen[k] for k in pen if "diffraction" not in a.specs[k]]
     return {"grad_score": g.mean_score, "grad_cells": int(g.n_cells.sum()), "wl_ratio": w.ratio,
+            "law_ratio": a.law_ratio, "law_error": a.law.error, "law_error_grey": a.law.error_grey,
+            "rmse_grey": a.fits[GREY].errors["rmse_log"],
             "lobe_gain": float(np.log(min(without) / min(with_d))) if with_d and without else float("nan"),
             "rmse_full": a.fits["full"].errors["rmse_log"],
             "rmse_no_diffraction": a.fits["no_diffraction"].errors["rmse_log"],

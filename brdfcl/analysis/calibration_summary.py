@@ -16,17 +16,22 @@ from brdfcl.analysis.analyze import Rule
 
 FP_TARGET = 0.05
 
-LEGACY = Rule(gradient_score=0.5, min_cells=30, wavelength_decisive=1.5, lobe_gain=0.0, gradient_required=False)
-"""The rule before the calibration (0.5 gradient score, 1.5 wavelength ratio, 2% per parameter), which
-calibration.md compares with the calibrated one."""
-NUMERIC = ("share", "grad_score", "wl_ratio", "lobe_gain", "noise", "missing", "rmse_full", "rmse_no_diffraction")
+LEGACY = Rule(gradient_score=0.2, min_cells=30, wavelength_decisive=5.0, lobe_gain=0.0, gradient_required=True,
+              wavelength_test="collapse")
+"""The rule before the wavelength law's model comparison (calibrated on the curve collapse: 0.2
+gradient score where at least 30 cells must decide, a veto at a collapse ratio of 5), which
+calibration.md compares with the one calibrated now."""
+NUMERIC = ("share", "grad_score", "wl_ratio", "law_ratio", "law_error", "law_error_grey", "lobe_gain", "noise",
+           "missing", "rmse_full", "rmse_no_diffraction", "rmse_grey")
 
 
 def rule_text(rule: Rule) -> str:
     """A verdict rule in words."""
     g = (f">= {rule.min_cells} gradient cells decide and score >= {rule.gradient_score:g}" if rule.gradient_required
          else f"gradient score >= {rule.gradient_score:g} where >= {rule.min_cells} cells decide")
-    return f"lobe gain > {rule.lobe_gain:g}, {g}, wavelength ratio < {rule.wavelength_decisive:g}"
+    w = "curve-collapse ratio" if rule.wavelength_test == "collapse" else "law ratio"
+    need = " (required)" if rule.wavelength_required else ""
+    return f"lobe gain > {rule.lobe_gain:g}, {g}, {w} < {rule.wavelength_decisive:g}{need}"
 
 
 def numeric_rows(rows) -> list[dict]:

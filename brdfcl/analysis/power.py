@@ -6,8 +6,12 @@ evidence for diffraction, and detects where it reaches a threshold:
 
 * ``gradient``: the score (share of decidable cells closer to grad f), where at least
   ``min_cells`` cells decide (else it detects nothing);
-* ``wavelength``: ``-ln(ratio)`` (the channels collapse better against f_c than against f0:
-  ratio < 1 is a statistic > 0);
+* ``wavelength``: ``-ln(law_ratio)`` (the wavelength law, brdfcl.analysis.law: the full model
+  with each channel's wavelength fits the wide-angle region better than with one: law_ratio < 1 is
+  a statistic > 0);
+* ``collapse``: ``-ln(ratio)`` of the curve collapse (brdfcl.analysis.wavelength: the channels'
+  binned curves collapse better against f_c than against f0), the law's picture, measured for
+  comparison; no rule reads it;
 * ``lobe``: the lobe gain, ln(best penalised error without diffraction / best with it);
 * ``verdict``: a brdfcl.analysis.analyze.Rule applied to the row's statistics.
 
@@ -27,15 +31,15 @@ import numpy as np
 
 from brdfcl.analysis.analyze import MIN_DECIDABLE, Rule
 
-TESTS = ("gradient", "wavelength", "lobe")
+TESTS = ("gradient", "wavelength", "collapse", "lobe")
 
 
 def statistic(row, test, min_cells=MIN_DECIDABLE) -> float:
     """The test's statistic of one row (NaN where the test cannot decide)."""
     if test == "gradient":
         return float(row["grad_score"]) if int(row["grad_cells"]) >= min_cells else float("nan")
-    if test == "wavelength":
-        r = float(row["wl_ratio"])
+    if test in ("wavelength", "collapse"):
+        r = float(row["law_ratio" if test == "wavelength" else "wl_ratio"])
         return float(-np.log(r)) if r > 0 else (float("inf") if r == 0 else float("nan"))
     if test == "lobe":
         return float(row["lobe_gain"])
@@ -43,7 +47,8 @@ def statistic(row, test, min_cells=MIN_DECIDABLE) -> float:
 
 
 def rule_margins(row, rule: Rule) -> dict:
-    return rule.margins(float(row["grad_score"]), int(row["grad_cells"]), float(row["wl_ratio"]),
+    ratio = rule.wavelength_ratio(float(row["law_ratio"]), float(row["wl_ratio"]))
+    return rule.margins(float(row["grad_score"]), int(row["grad_cells"]), ratio,
                         float(row["lobe_gain"]))
 
 
@@ -122,8 +127,9 @@ def test_threshold(rows, test, fp=0.05):
 
 GRID = {"gradient_score": (0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7),
         "lobe_gain": (-0.05, -0.025, 0.0, 0.025, 0.05, 0.1, 0.2, 0.4),
-        "wavelength_decisive": (1.0, 1.25, 1.5, 2.0, 3.0, 5.0),
+        "wavelength_decisive": (0.9, 0.95, 0.98, 1.0, 1.02, 1.05, 1.1, 1.25, 1.5, 2.0),
         "gradient_required": (False, True),
+        "wavelength_required": (False, True),
         "min_cells": (30, 100)}
 """The verdict rules ``choose_rule`` tries: round thresholds, so that the choice cannot follow
 single calibration cases."""
@@ -136,8 +142,8 @@ def _kind_rates(rows, rule, kinds):
 def choose_rule(rows, fp=0.05, base: Rule | None = None, grid=None):
     """The verdict rule chosen on the calibration rows: (Rule, its detection rate).
 
-    The rule keeps its form (the lobe comparison decides, the gradient test and the wavelength check
-    may contradict, the gradient test may be required to decide); only its settings move, over
+    The rule keeps its form (the lobe comparison decides, the gradient test and the wavelength law
+    may contradict, either may be required to decide); only its settings move, over
     ``GRID``.  Admissible: a false-positive rate at most ``fp`` on the no-diffraction rows of each
     table kind separately.  Detection: the mean over the table kinds of the rate over the
     diffraction rows.  Kept, by the one-standard-error rule of model selection: among the
@@ -158,8 +164,8 @@ def choose_rule(rows, fp=0.05, base: Rule | None = None, grid=None):
         hits = _kind_rates(power_rows, rule, kinds)
         p = float(np.mean([h / max(n, 1) for h, n in hits]))
         se = float(np.sqrt(sum(h / max(n, 1) * (1 - h / max(n, 1)) / max(n, 1) for h, n in hits)) / len(hits))
-        strict = (rule.gradient_required, rule.gradient_score, rule.lobe_gain, -rule.wavelength_decisive,
-                  rule.min_cells)
+        strict = (rule.gradient_required, rule.wavelength_required, rule.gradient_score, rule.lobe_gain,
+                  -rule.wavelength_decisive, rule.min_cells)
         scored.append((p, se, -sum(h for h, _ in fps), strict, rule))
     if not scored:
         return None, float("nan")

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from brdfcl.analysis.gradient import MAX_TD_DEG, WIDE_TH_DEG
+from brdfcl.analysis.law import wide_samples
 from brdfcl.analysis.wavelength import DECISIVE, N_BINS, _binned, _collapse
 from brdfcl.model.lobes.cells import Cells
 
@@ -91,7 +91,7 @@ def spectral_check(samples, model, params, cutoff_deg: float = 80.0) -> Spectral
     fitted to them (``params``: {name: value}); None when fewer than MIN_SAMPLES samples are
     wide-angle (theta_h >= WIDE_TH_DEG, theta_d <= MAX_TD_DEG) or fewer than three bands."""
     th, td, _ = samples.isotropic()
-    wide = samples.mask(cutoff_deg) & (th >= np.radians(WIDE_TH_DEG)) & (td <= np.radians(MAX_TD_DEG))
+    wide = wide_samples(samples, cutoff_deg)
     lam = np.asarray(samples.wavelengths, dtype=float)
     if wide.sum() < MIN_SAMPLES or lam.size < 3:
         return None

@@ -19,7 +19,8 @@ import numpy as np
 from brdfcl._words import count
 from brdfcl.analysis.analyze import COMPARED, MaterialAnalysis, analyze_material, lobe_images
 from brdfcl.analysis.gradient import phi90_slice
-from brdfcl.analysis.samples import GREY, SampleAnalysis, analyze_samples, grey_lambdas
+from brdfcl.analysis.law import GREY, grey_fitters
+from brdfcl.analysis.samples import SampleAnalysis, analyze_samples
 from brdfcl.app.runner import Runner
 from brdfcl.data.errors import DataError
 from brdfcl.data.geometry import table_values
@@ -89,9 +90,11 @@ def analyze(source: Any, out: str | os.PathLike | None = None, options: FitOptio
             t = time.perf_counter()
             fitted = f.fit_loaded(loaded) if same_cells(base, f) else f.fit(read)
             fits[k] = {r.name: r for r in fitted}
-            run.log(f"fitted {count(len(read), 'material')} with {specs[k]} ({k}) in {time.perf_counter() - t:.1f} s")
+            run.log(f"fitted {count(len(read), 'material')} with {specs.get(k, specs['full'])} ({k}) in "
+                    f"{time.perf_counter() - t:.1f} s")
         del loaded
         best_of_both(fits, "full", "full_local")
+        best_of_both(fits, GREY, GREY + "_local")
         for m in read:
             try:
                 brdf = table_values(m, np.arange(N_CELLS))      # the gradient test's grid
@@ -104,12 +107,12 @@ def analyze(source: Any, out: str | os.PathLike | None = None, options: FitOptio
                 a.slices = {"measured": phi90_slice(brdf)[0], **lobe_images(specs["full"], a.fits["full"].params)}
             finished(a, m.path)
             run.log(f"{name}: {a.verdict} (lobes {a.specs[a.selected]}, gradient score "
-                    f"{a.gradient.mean_score:.2f}, wavelength ratio {a.wavelength.ratio:.2f})")
+                    f"{a.gradient.mean_score:.2f}, wavelength law ratio {a.law_ratio:.3f})")
     scattered = [g for g in groups if not g[0].layout.dense]
     for path, sa in _analyze_samples(run, scattered, opts, specs, ct_peak, batch):
         finished(sa, path)
         n = sa.spectral.exponent if sa.spectral else float("nan")
-        run.log(f"{sa.name}: {sa.verdict} (lobes {sa.specs[sa.selected]}, wavelength law ratio {sa.law_ratio:.2f} "
+        run.log(f"{sa.name}: {sa.verdict} (lobes {sa.specs[sa.selected]}, wavelength law ratio {sa.law_ratio:.3f} "
                 f"over {count(len(sa.lambdas), 'band')}, lambda exponent {n:.2f}; gradient test not run on scattered "
                 "samples)")
     run.finish()
@@ -123,7 +126,8 @@ def analyze(source: Any, out: str | os.PathLike | None = None, options: FitOptio
 def variant_fitters(opts: FitOptions, specs: dict, ct_peak: bool, lambdas: tuple | None = None) -> dict:
     """A Fitter per compared variant (brdfcl.optim.selection.variants) and, with the peak
     constraint, the full model from a global search without it (``full_local``) and the full model
-    without the constraint (``full_free``), sharing the full model's engine."""
+    without the constraint (``full_free``), sharing the full model's engine; and the wavelength
+    law's rivals, the full model with every channel at one wavelength (brdfcl.analysis.law)."""
     fitters = {k: Fitter(replace(opts, model=sp, fixed={}, ct_peak=ct_peak), lambdas=lambdas)
                for k, sp in specs.items() if k in COMPARED}
     base = fitters["full"]
@@ -131,6 +135,7 @@ def variant_fitters(opts: FitOptions, specs: dict, ct_peak: bool, lambdas: tuple
         for key, o in (("full_local", replace(base.opts, ct_peak_global=False)),
                        ("full_free", replace(base.opts, ct_peak=False))):
             fitters[key] = Fitter(o, engine=base.engine, lambdas=lambdas)
+    fitters.update(grey_fitters(base, lambdas or Model(specs["full"]).lambdas, ct_peak))
     return fitters
 
 
@@ -148,12 +153,6 @@ def _analyze_samples(run: Runner, groups: list[list[Measurement]], opts: FitOpti
     for group in groups:
         lambdas = tuple(float(x) for x in group[0].wavelengths)
         fitters = variant_fitters(opts, specs, ct_peak, lambdas)
-        base = fitters["full"]
-        grey = grey_lambdas(lambdas)            # the wavelength law's rival, searched as the full model
-        fitters[GREY] = Fitter(base.opts, lambdas=grey)
-        if ct_peak:
-            fitters[GREY + "_local"] = Fitter(replace(base.opts, ct_peak_global=False), engine=fitters[GREY].engine,
-                                              lambdas=grey)
         for part in run.batches(group, batch):
             samples = list(part)
             fits = {}

@@ -10,7 +10,7 @@ import numpy as np
 
 from brdfcl.analysis import power
 from brdfcl.analysis.calibration_summary import Summary
-from brdfcl.report.calibration_markdown import LABELS, pct
+from brdfcl.report.calibration_markdown import LABELS, STATISTIC, pct, threshold_text
 
 
 def _band(ax, curve, **kw):
@@ -53,12 +53,12 @@ def write_figures(out: Path, summary: Summary) -> None:
                                        summary.halo)
     plt = _pyplot()
     cols = list(power.TESTS) + ["verdict:calibrated"]
-    fig, axs = plt.subplots(2, 2, figsize=(12, 9), constrained_layout=True)
+    fig, axs = plt.subplots(2, 3, figsize=(17, 9), constrained_layout=True)
+    for ax in axs.ravel()[len(cols):]:
+        ax.set_visible(False)
     for ax, col in zip(axs.ravel(), cols):
         fps = " / ".join(pct(*res["fp"][col, k]) for k in kinds)
-        shown = {"gradient": f"score >= {thr['gradient']:.3g}", "lobe": f"gain >= {thr['lobe']:.3g}",
-                 "wavelength": f"ratio <= {np.exp(-thr['wavelength']):.3g}"}
-        name = LABELS[col.split(":")[0]] + (" (calibrated rule)" if ":" in col else f", {shown[col]}")
+        name = LABELS[col.split(":")[0]] + (" (calibrated rule)" if ":" in col else f", {threshold_text(col, thr)}")
         _axes(ax, f"{name}\nfalse positives {fps} ({' / '.join(kinds)})",
               [x[0] for x in res["curves"][col, "original"]])
         for c in halo:
@@ -73,7 +73,7 @@ def write_figures(out: Path, summary: Summary) -> None:
     fig.savefig(out / "power.png")
     plt.close(fig)
 
-    fig, axs = plt.subplots(1, 3, figsize=(15, 5), constrained_layout=True)
+    fig, axs = plt.subplots(1, len(power.TESTS), figsize=(5 * len(power.TESTS), 5), constrained_layout=True)
     shares = sorted({r["share"] for r in rows if r["share"] > 0})
     x0 = shares[0] / 3 if shares else 0.01
     rng = np.random.default_rng(0)
@@ -85,15 +85,14 @@ def write_figures(out: Path, summary: Summary) -> None:
             xs = np.array([p[0] for p in pts]) * np.exp(rng.uniform(-0.12, 0.12, len(pts)))
             ys = np.array([p[1] for p in pts])
             ax.scatter(xs, np.clip(ys, -5, 5), s=12, alpha=0.6, color=color, label=k)
-        at = f"ratio {np.exp(-thr[t]):.3g}" if t == "wavelength" else f"{thr[t]:.3g}"
-        ax.axhline(thr[t], color="k", ls="--", lw=1, label=f"threshold ({at}, 5% false positives)")
+        ax.axhline(thr[t], color="k", ls="--", lw=1,
+                   label=f"threshold ({threshold_text(t, thr)}, 5% false positives)")
         ax.set_xscale("log")
         ax.set_xticks([x0] + shares)
         ax.set_xticklabels(["none"] + [f"{s:g}" for s in shares], rotation=45)
         ax.minorticks_off()
         ax.set_xlabel("diffraction share (none: no-diffraction classes)")
-        ax.set_ylabel({"gradient": "gradient score", "wavelength": "-ln(wavelength ratio)",
-                       "lobe": "lobe gain ln(pen. without / with)"}[t])
+        ax.set_ylabel(STATISTIC[t])
         ax.set_title(LABELS[t])
         ax.grid(alpha=0.3)
         ax.legend(fontsize=9, loc="upper center")
@@ -107,7 +106,8 @@ def write_figures(out: Path, summary: Summary) -> None:
         for k, ls in (("original", "-"), ("roundtrip", "--")):
             if k in kinds:
                 _band(ax, res["curves"][col, k], color=color, ls=ls,
-                      label=f"{name} rule, {k} (false positives {pct(*res['fp'][col, k])})")
+                      label=f"{'previous' if name == 'legacy' else name} rule, {k} "
+                            f"(false positives {pct(*res['fp'][col, k])})")
     _axes(ax, "Verdict 'diffraction' against the diffraction share",
           [x[0] for x in res["curves"]["verdict:legacy", "original"]])
     ax.legend(loc="upper left", fontsize=9)

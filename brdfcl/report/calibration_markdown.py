@@ -9,8 +9,18 @@ from brdfcl.analysis import power
 from brdfcl.analysis.analyze import RULE
 from brdfcl.analysis.calibration_summary import FP_TARGET, LEGACY, Summary, detector, rule_text
 
-LABELS = {"gradient": "gradient test", "wavelength": "wavelength check", "lobe": "lobe comparison",
-          "verdict": "verdict"}
+LABELS = {"gradient": "gradient test", "wavelength": "wavelength law", "collapse": "curve collapse",
+          "lobe": "lobe comparison", "verdict": "verdict"}
+STATISTIC = {"gradient": "score (>= 30 decidable cells)", "wavelength": "-ln(law ratio)",
+             "collapse": "-ln(collapse ratio)", "lobe": "lobe gain"}
+
+
+def threshold_text(test, thresholds) -> str:
+    """A test's threshold in the units a reader knows (a ratio for the two ratio tests)."""
+    t = thresholds[test]
+    if test in ("wavelength", "collapse"):
+        return f"ratio <= {np.exp(-t):.3g}"
+    return f"{'score' if test == 'gradient' else 'gain'} >= {t:.3g}"
 
 
 def pct(k, n):
@@ -40,14 +50,11 @@ def markdown(summary: Summary, fp=FP_TARGET, epochs=None, timing=None) -> str:
           "cases, on the original and on the round-tripped tables alike)", "",
           "| test | statistic | threshold | false positives, original | false positives, round trip |",
           "| --- | --- | --- | --- | --- |"]
-    stat = {"gradient": "score (>= 30 decidable cells)", "wavelength": "-ln(ratio)", "lobe": "lobe gain"}
-    shown = {"gradient": f"score >= {thr['gradient']:.3g}", "lobe": f"gain >= {thr['lobe']:.3g}",
-             "wavelength": f"ratio <= {np.exp(-thr['wavelength']):.3g}"}
     for t in power.TESTS:
-        L.append(f"| {LABELS[t]} | {stat[t]} | {shown[t]} | "
+        L.append(f"| {LABELS[t]} | {STATISTIC[t]} | {threshold_text(t, thr)} | "
                  + " | ".join(pct(*res["fp"][t, k]) if k in kinds else "-" for k in ("original", "roundtrip")) + " |")
     L += ["", "## The verdict rule", "",
-          f"* legacy: {rule_text(LEGACY)};",
+          f"* legacy (the rule before the law test): {rule_text(LEGACY)};",
           f"* calibrated: {rule_text(chosen)}: of the rules on a grid of round thresholds "
           f"(brdfcl.analysis.power.GRID), the one with the highest detection over the diffraction cases "
           f"(mean of the two table kinds) with <= {100 * fp:.0f}% false positives on each table kind's "

@@ -168,11 +168,13 @@ def _wavelength_figure(plt, a, lambdas=None):
     fig.legend(handles=h + extra, loc="outside lower center", ncols=5, frameon=False,
                title="lines: median of each bin, scaled per channel (the curves the spreads are computed on)")
     axes[0].set_ylabel(r"$p - \rho_d/\pi$, scaled per channel (relative)")
-    verdict = {True: "< 1: the channels collapse with the wavelength, as diffraction predicts",
-               False: ">= 1.5: decisively better without the wavelength, against diffraction",
-               None: "between 1 and 1.5 (or no value): undecided"}[w.consistent]
-    fig.suptitle(f"{a.name}: wavelength check at $\\phi_d \\approx 90^\\circ$; ratio of spreads "
-                 f"{w.spread:.3f} / {w.spread_f0:.3f} = {w.ratio:.2f}\n({verdict})")
+    law = a.law_ratio
+    says = ("no value" if not np.isfinite(law) else
+            "< 1: the wide angles fit better with each channel's wavelength, as diffraction predicts" if law < 1
+            else ">= 1: they fit no better with each channel's wavelength")
+    fig.suptitle(f"{a.name}: the wavelength law pictured at $\\phi_d \\approx 90^\\circ$ (curve collapse: ratio "
+                 f"of spreads {w.spread:.3f} / {w.spread_f0:.3f} = {w.ratio:.2f}, not used by the verdict)\n"
+                 f"law test (wide-angle error with $\\lambda_c$ / with one $\\lambda$) {law:.3f}: {says}")
     return fig
 
 

@@ -188,12 +188,12 @@ def _spectral_figure(plt, a):
     sm = mpl.cm.ScalarMappable(cmap="turbo", norm=mpl.colors.Normalize(380, 720))
     fig.colorbar(sm, ax=axes, location="right", label="wavelength (nm)", shrink=0.8)
     collapse = "collapse better against $f_c$" if s.ratio < 1 else "do not collapse better against $f_c$"
-    law = getattr(a, "law_ratio", float("nan"))
+    law = a.law_ratio
     n = f"{s.exponent:.2f} +- {s.exponent_se:.2f}" if np.isfinite(s.exponent) else "n/a"
     fig.suptitle(f"{a.name}: wavelength check over {count(lam.size, 'band')} "
                  f"({count(s.n_wide, 'wide-angle sample')}; lines: the scaled band medians)\n"
                  f"residual band curves: ratio of spreads {s.ratio:.2f}, they {collapse}; "
-                 f"wavelength law (rmse with $\\lambda_c$ / with one $\\lambda$): {law:.2f}\n"
+                 f"wavelength law (wide-angle error with $\\lambda_c$ / with one $\\lambda$): {law:.3f}\n"
                  f"fitted diffraction amplitude ~ $\\lambda^{{-n}}$, n = {n} (4 on a spectrally flat surface)")
     return fig
 

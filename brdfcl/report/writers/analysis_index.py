@@ -20,12 +20,14 @@ from brdfcl.report.writers.base import ANALYSIS, Item, Job, Writer
 
 COLUMNS = ["material", "verdict", "verdict_by", "margin_gradient", "margin_wavelength", "margin_lobe",
            "selected_lobes", "grad_score_g", "grad_cells", "grad_band_deg_g",
-           "wavelength_ratio", "lambda_exponent", "rmse_log_full", "rmse_log_no_diffraction", "rmse_log_no_ct",
+           "law_ratio", "collapse_ratio", "lambda_exponent",
+           "rmse_log_full", "rmse_log_no_diffraction", "rmse_log_no_ct",
            "peak_share_diffraction", "rmse_log_full_free", "peak_share_free"]
 HEADS = {"verdict_by": "verdict hangs on", "margin_gradient": "margin gradient",
          "margin_wavelength": "margin wavelength", "margin_lobe": "margin lobe", "selected_lobes": "lobes kept",
          "grad_score_g": "gradient score G", "grad_cells": "decided cells",
-         "grad_band_deg_g": "band theta_h (deg) G", "wavelength_ratio": "wavelength ratio",
+         "grad_band_deg_g": "band theta_h (deg) G", "law_ratio": "wavelength law ratio",
+         "collapse_ratio": "collapse ratio",
          "lambda_exponent": "lambda exponent (samples)",
          "rmse_log_full": "rmse_log full", "rmse_log_no_diffraction": "rmse_log no diffraction",
          "rmse_log_no_ct": "rmse_log no CT", "peak_share_diffraction": "peak share diffraction",
@@ -38,12 +40,13 @@ STYLE = ("<style>body{font-family:sans-serif;margin:1em;max-width:1400px}td,th{b
 INTRO = ("<p>Gradient test: share of the decidable wide-angle cells whose data gradient at phi_d ~ 90 deg "
          "is closer to the diffraction prediction (parallel to grad f) than to the Cook-Torrance one "
          "(theta_h = const tilted by 1/(cos ti cos to) and the Fresnel slope of the ridge). "
-         "Wavelength check: spread of the channels against f_c over their spread without the wavelength "
-         "(&lt; 1 collapses; the verdict is vetoed from 5). On scattered spectral samples the gradient "
-         "test is not run (no grid) and the wavelength ratio is the wavelength law's: rmse_log of the full "
-         "model fitted with each band's wavelength over that with every band at one wavelength (&lt; 1: "
-         "the wavelength enters as diffraction predicts; required); the fitted exponent n of the "
-         "diffraction amplitude ~ lambda^-n is shown (4 in theory). Lobe "
+         "Wavelength law: the full model fitted with each channel's wavelength and with every channel at "
+         "one wavelength; the ratio of their RMS log errors over the wide-angle cells (or samples), &lt; 1 "
+         "where the wavelength enters as diffraction predicts, read by the verdict as calibrated, the same "
+         "for tables and scattered samples. Collapse ratio: spread of the channels' binned curves against "
+         "f_c over their spread without the wavelength (&lt; 1 collapses), the law's picture, not read "
+         "by the verdict. On scattered spectral samples the gradient test is not run (no grid); the "
+         "fitted exponent n of the diffraction amplitude ~ lambda^-n is shown (4 in theory). Lobe "
          "comparison: penalised rmse_log with and without each lobe. Peak share: part of the fitted "
          "value at the specular peak carried by the diffraction lobe; the fits keep it at most equal to "
          "Cook-Torrance's (the talk's model), and the *_free columns show the full fit without that "
