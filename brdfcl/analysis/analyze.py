@@ -4,11 +4,12 @@ For every material: the gradient test (brdfcl.analysis.gradient), the wavelength
 (brdfcl.analysis.law: the full model fitted with each channel's wavelength and with one), the
 lobe comparison (brdfcl.optim.selection: fits with and without the diffraction and Cook-Torrance
 lobes, sharing one load of the data), and the curve collapse (brdfcl.analysis.wavelength), which
-pictures the law but does not decide.  Each test is necessary, none sufficient (a broad
-Cook-Torrance lobe can tilt the level lines like f does, and a misfitting CT lobe can be patched
-by a diffraction lobe), so the verdict is ``diffraction`` only when the lobe comparison keeps the
-diffraction lobe, the gradient test decides and agrees, and the wavelength law does not
-contradict it; ``none`` otherwise (``Rule``).
+pictures the law.  Each test is necessary, none sufficient (a broad Cook-Torrance lobe can tilt
+the level lines like f does, and a misfitting CT lobe can be patched by a diffraction lobe), so
+the verdict is ``diffraction`` only when the lobe comparison keeps the diffraction lobe, the
+gradient test decides and agrees, and the wavelength test the rule reads (``Rule.wavelength_test``:
+the curve collapse, on which ``RULE`` was calibrated, or the law) does not contradict it; ``none``
+otherwise (``Rule``).
 A material with verdict ``none`` gets its final fit without the diffraction lobe.
 
 The thresholds (``RULE``) are chosen by the calibration (``brdfcl calibrate``,
