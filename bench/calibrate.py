@@ -204,9 +204,16 @@ def why(r, rule, name):
         out.append(f"gradient undecided ({r['grad_cells']} cells)")
     ratio = rule.wavelength_ratio(r["law_ratio"], r["wl_ratio"])
     if m["wavelength"] <= 0:
-        out.append(f"{rule.wavelength_test} ratio {ratio:.3f} >= {rule.wavelength_decisive:g}")
-    elif rule.wavelength_required and not np.isfinite(m["wavelength"]):
-        out.append("no law ratio")
+        out.append(f"{rule.wavelength_test} ratio {ratio:.3f} >= {rule.wavelength_veto:g}")
+    if not m["evidence"] >= 0:
+        short = []
+        if np.isfinite(rule.gradient_decisive):
+            decided = r["grad_cells"] >= rule.min_cells
+            short.append(f"gradient {r['grad_score']:.2f} < {rule.gradient_decisive:g}" if decided
+                         else f"gradient undecided ({r['grad_cells']} cells)")
+        if rule.wavelength_decisive > 0:
+            short.append(f"{rule.wavelength_test} ratio {ratio:.3f} >= {rule.wavelength_decisive:g}")
+        out.append(f"no evidence ({', '.join(short)})")
     return f"{name}: " + (", ".join(out) if out else "passes")
 
 
@@ -216,7 +223,7 @@ def proxies_markdown(out, small=0.05):
     rows = read_rows(out / "proxies.csv")
     for r in rows:
         for k in ("grad_score", "wl_ratio", "law_ratio", "lobe_gain", "margin_gradient", "margin_wavelength",
-                  "margin_lobe", "fitted_share"):
+                  "margin_lobe", "margin_evidence", "fitted_share"):
             r[k] = float(r[k]) if r.get(k) not in ("", None) else float("nan")
         r["grad_cells"] = int(r["grad_cells"])
         r["share"] = float("nan")
@@ -258,11 +265,19 @@ def proxies_markdown(out, small=0.05):
                  f"({r['grad_cells']}) | {_fmt(r['law_ratio'], '.4f')} | {_fmt(r['wl_ratio'])} | "
                  f"{_fmt(r['lobe_gain'], '+.3f')} |")
     diff = [r for r in rows if r["verdict"] == "diffraction"]
-    thin = [r for r in diff if min(r["margin_lobe"], r["margin_gradient"]) < small]
-    L += ["", f"Of the {len(diff)} `diffraction` verdicts, {len(thin)} hang on a lobe margin (gain) or a gradient "
-          f"margin (score - {RULE.gradient_score:g}) below {small:g}: "
-          + ", ".join(f"{r['material']} (lobe {r['margin_lobe']:+.3f}, gradient {r['margin_gradient']:+.2f})"
-                      for r in thin) + "."]
+    keys = ("lobe", "gradient", "wavelength", "evidence")
+
+    def least(r):
+        m = {k: r[f"margin_{k}"] for k in keys if np.isfinite(r[f"margin_{k}"])}
+        return min(m.items(), key=lambda kv: kv[1])
+
+    thin = [r for r in diff if least(r)[1] < small]
+    L += ["", f"Of the {len(diff)} `diffraction` verdicts, {len(thin)} hang on a margin below {small:g} (lobe: gain - "
+          f"{RULE.lobe_gain:g}; gradient: score - {RULE.gradient_score:g}; wavelength: ln({RULE.wavelength_veto:g} / "
+          f"ratio); evidence: the larger of score - {RULE.gradient_decisive:g} and "
+          f"ln({RULE.wavelength_decisive:g} / ratio))"
+          + (": " + ", ".join(f"{r['material']} ({least(r)[0]} {least(r)[1]:+.3f})" for r in thin) if thin else "")
+          + "."]
     same_fit = [r for r in rows if r["baseline_verdict"] and r["legacy_verdict"] != r["baseline_verdict"]]
     L += ["", f"Legacy rule on this run's fits against the baseline: {len(same_fit)} verdicts differ"
           + (f" ({', '.join(r['material'] for r in same_fit)})" if same_fit else "") + "."]

@@ -112,20 +112,19 @@ def test_the_report_says_what_was_run(analysed):
 @pytest.mark.slow
 def test_krylon_is_analysed(krylon, tmp_path):
     (a,) = analyze([krylon.path], None)
-    assert a.verdict == "none" and a.margins()["verdict_by"].endswith("lobe") and a.spectral is not None
+    assert a.verdict == "none" and "lobe" in a.margins()["verdict_by"].split("+") and a.spectral is not None
     assert a.spectral.n_wide > 1000 and len(a.spectral.wavelengths) == 31
     assert a.fits["full"].errors["rel_rmse"] < 0.3
     assert a.row()["gradient_test"] == GRADIENT_NOT_RUN
 
 
 def test_the_sample_rule_reads_the_law_as_the_table_rule():
-    """A verdict means one thing: the samples' rule is the tables' rule with the law required and
-    the gradient test (not run on samples) not."""
+    """A verdict means one thing: the samples' rule is the tables' rule, without requiring the
+    gradient test (not run on samples), so that the evidence must come from the law."""
     from dataclasses import replace
 
     from brdfcl.analysis.analyze import RULE
-    assert SAMPLE_RULE.wavelength_test == "law" and SAMPLE_RULE.wavelength_required
-    assert replace(SAMPLE_RULE, wavelength_decisive=RULE.wavelength_decisive, gradient_required=RULE.gradient_required,
-                   wavelength_required=RULE.wavelength_required, wavelength_test=RULE.wavelength_test) == RULE
+    assert SAMPLE_RULE.wavelength_test == "law" and not SAMPLE_RULE.gradient_required
+    assert replace(SAMPLE_RULE, gradient_required=RULE.gradient_required) == RULE
     assert SAMPLE_RULE.verdict(SAMPLE_RULE.margins(float("nan"), 0, 0.5, 0.3)) == "diffraction"
     assert SAMPLE_RULE.verdict(SAMPLE_RULE.margins(float("nan"), 0, float("nan"), 0.3)) == "none"

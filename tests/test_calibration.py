@@ -2,6 +2,7 @@
 power and threshold arithmetic, and the verdict rule with its margins.  A few tiny cases only."""
 import importlib.util
 import os
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -177,38 +178,47 @@ def test_smallest_share_interpolates_the_crossing():
     assert np.isnan(power.smallest_share([(0.1, 1, 10), (0.5, 2, 10)]))
 
 
-def test_chosen_rule_respects_the_false_positive_target():
+def test_chosen_rule_respects_the_false_positive_target_on_each_class():
     rng = np.random.default_rng(4)
     rows = []
     for table in ("original", "roundtrip"):
-        rows += [_row(0.0, table, score=s, gain=g, ratio=r) for s, g, r in
-                 zip(rng.uniform(0, 0.5, 40), rng.normal(-0.05, 0.03, 40), rng.uniform(1, 20, 40))]
-        rows += [_row(sh, table, score=min(1, sh + rng.uniform(0, 0.4)), gain=sh - 0.1, ratio=rng.uniform(0.5, 2))
+        rows += [_row(0.0, table, score=s, gain=g, ratio=r, cls=("a", "b")[i % 2]) for i, (s, g, r) in
+                 enumerate(zip(rng.uniform(0, 0.5, 40), rng.normal(-0.05, 0.03, 40), rng.uniform(0.95, 1.5, 40)))]
+        rows += [_row(sh, table, score=min(1, sh + rng.uniform(0, 0.4)), gain=sh - 0.1, ratio=rng.uniform(0.5, 1.1))
                  for sh in (0.1, 0.3, 0.6, 0.9) for _ in range(5)]
     rule, mean_power = power.choose_rule(rows, fp=0.05)
     for table in ("original", "roundtrip"):
-        k, n = power.rate([r for r in rows if r["share"] == 0 and r["table"] == table], "verdict", rule=rule)
-        assert k <= 0.05 * n
+        for cls in ("a", "b"):
+            k, n = power.rate([r for r in rows if r["share"] == 0 and r["table"] == table and r["class"] == cls],
+                              "verdict", rule=rule)
+            assert k <= 0.05 * n
     assert mean_power > 0.3
+    hits = [power.detects(r, "verdict", rule=rule) for r in rows if r["share"] > 0]
+    assert np.mean(hits) == pytest.approx(mean_power)     # the vectorised choice counts as detects does
 
 
 def test_rule_margins_and_verdicts():
-    legacy = Rule(gradient_score=0.5, min_cells=30, wavelength_decisive=1.5, lobe_gain=0.0, gradient_required=False)
-    m = legacy.margins(0.7, 100, 1.0, 0.2)
-    assert m["gradient"] == pytest.approx(0.2) and m["lobe"] == pytest.approx(0.2)
+    rule = Rule(gradient_score=0.1, gradient_decisive=0.5, min_cells=30, wavelength_decisive=0.98,
+                wavelength_veto=1.5, lobe_gain=0.0, gradient_required=False)
+    m = rule.margins(0.7, 100, 1.0, 0.2)
+    assert m["gradient"] == pytest.approx(0.6) and m["lobe"] == pytest.approx(0.2)
     assert m["wavelength"] == pytest.approx(np.log(1.5))
-    assert legacy.verdict(m) == "diffraction" and legacy.binding(m) == "gradient"
-    assert legacy.binding(legacy.margins(0.9, 100, 1.0, 0.2)) == "lobe"
-    assert legacy.verdict(legacy.margins(0.4, 100, 1.0, 0.2)) == "none"          # gradient contradicts
-    assert legacy.verdict(legacy.margins(0.4, 10, 1.0, 0.2)) == "diffraction"    # ... but cannot decide
-    assert legacy.verdict(legacy.margins(0.9, 100, 1.5, 0.2)) == "none"          # decisive ratio
-    assert legacy.verdict(legacy.margins(0.9, 100, float("nan"), 0.2)) == "diffraction"
-    m = legacy.margins(0.4, 100, 2.0, -0.1)
-    assert legacy.binding(m) == "gradient+wavelength+lobe"
-    strict = Rule(gradient_score=0.2, min_cells=30, wavelength_decisive=5.0, lobe_gain=0.0, gradient_required=True)
-    assert strict.verdict(strict.margins(0.4, 10, 1.0, 0.2)) == "none"            # must decide
-    assert strict.binding(strict.margins(0.4, 10, 1.0, 0.2)) == "gradient"
-    assert strict.verdict(strict.margins(0.25, 100, 4.0, 0.01)) == "diffraction"
+    assert m["evidence"] == pytest.approx(0.2)                                     # the gradient's
+    assert rule.verdict(m) == "diffraction" and rule.binding(m) == "evidence"
+    assert rule.verdict(rule.margins(0.3, 100, 1.0, 0.2)) == "none"               # no evidence
+    assert rule.binding(rule.margins(0.3, 100, 1.0, 0.2)) == "evidence"
+    assert rule.verdict(rule.margins(0.3, 100, 0.9, 0.2)) == "diffraction"        # the law is evidence
+    assert rule.verdict(rule.margins(0.05, 100, 0.9, 0.2)) == "none"              # gradient contradicts
+    assert rule.verdict(rule.margins(0.05, 10, 0.9, 0.2)) == "diffraction"        # ... but cannot decide
+    assert rule.verdict(rule.margins(0.9, 100, 1.5, 0.2)) == "none"               # the law vetoes
+    assert rule.verdict(rule.margins(0.9, 100, float("nan"), 0.2)) == "diffraction"
+    assert rule.verdict(rule.margins(0.05, 10, float("nan"), 0.2)) == "none"      # nothing decides
+    assert rule.binding(rule.margins(0.05, 100, 2.0, -0.1)) == "gradient+wavelength+lobe+evidence"
+    strict = replace(rule, gradient_required=True)
+    assert strict.verdict(strict.margins(0.3, 10, 0.9, 0.2)) == "none"            # must decide
+    assert strict.binding(strict.margins(0.3, 10, 0.9, 0.2)) == "gradient"
+    arrays = rule.margins(np.array([0.7, 0.3, 0.05]), np.array([100, 100, 10]), np.array([1.0, 1.0, 0.9]), 0.2)
+    assert list(rule.diffraction(arrays)) == [True, False, True]                 # arrays as numbers
 
 
 @pytest.mark.skipif(os.environ.get("BRDFCL_FAST") == "1", reason="fits")

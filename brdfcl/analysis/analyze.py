@@ -5,24 +5,23 @@ For every material: the gradient test (brdfcl.analysis.gradient), the wavelength
 lobe comparison (brdfcl.optim.selection: fits with and without the diffraction and Cook-Torrance
 lobes, sharing one load of the data), and the curve collapse (brdfcl.analysis.wavelength), which
 pictures the law.  Each test is necessary, none sufficient (a broad Cook-Torrance lobe can tilt
-the level lines like f does, and a misfitting CT lobe can be patched by a diffraction lobe), so
-the verdict is ``diffraction`` only when the lobe comparison keeps the diffraction lobe, the
-gradient test decides and agrees, and the wavelength test the rule reads (``Rule.wavelength_test``:
-the curve collapse, on which ``RULE`` was calibrated, or the law) does not contradict it; ``none``
-otherwise (``Rule``).
-A material with verdict ``none`` gets its final fit without the diffraction lobe.
+the level lines like f does, a colour that changes with angle can favour the channels'
+wavelengths, and a misfitting CT lobe can be patched by a diffraction lobe), so the verdict is
+``diffraction`` only when the lobe comparison keeps the diffraction lobe, neither the gradient
+test nor the law contradicts it, and at least one of them is evidence for it (``Rule``); ``none``
+otherwise.  A material with verdict ``none`` gets its final fit without the diffraction lobe.
 
 The thresholds (``RULE``) are chosen by the calibration (``brdfcl calibrate``,
 brdfcl.analysis.calibration) on synthetic materials of known diffraction share, measured with
 MERL-like noise and missing cells, on the tables themselves and after the NBRDF round trip of the
-MERL-proxy: the rule of highest detection with at most 5% false positives on either kind of table
-(bench/results/calibration/calibration.md has its rates).  The lobe comparison must keep the
-diffraction lobe (lobe gain > 0); at least 30 gradient-test cells must decide and at least 20% of
-them side with diffraction (moderate halos give no higher score), an undecided gradient test
-giving ``none`` (the lobe comparison alone lets layered, two-lobe, materials through); and the
-wavelength check vetoes only at a ratio of 5 (real halos under noise reach ratios above 1.5).
-The rule is only as good as the no-diffraction classes it was calibrated on
-(bench/results/calibration/NOTE.md).  Each verdict carries its margins
+MERL-proxy, among them materials whose colour changes with angle by other means (thin films,
+per-channel roughness, metals' dispersion): the rule of highest detection with at most 5% false
+positives on each no-diffraction class of either kind of table (bench/results/calibration/
+calibration.md has its rates).  The lobe comparison may fall short of keeping the lobe by 0.05
+(the penalised errors nearly tie); where at least 100 gradient-test cells decide, a score below
+0.3 contradicts; a law ratio of 1.25 or more contradicts; the evidence is a gradient score of at
+least 0.5 or a law ratio below 0.99.  The rule is only as good as the no-diffraction classes it
+was calibrated on (bench/results/calibration/NOTE.md).  Each verdict carries its margins
 (``MaterialAnalysis.margins``).
 
 The fits give the specular peak to Cook-Torrance (brdfcl.optim.peak_order, the talk's model);
@@ -45,77 +44,99 @@ from brdfcl.optim.peak_order import peak_cell
 from brdfcl.optim.selection import select
 
 # The verdict's thresholds, calibrated (bench/results/calibration/calibration.md)
-MIN_DECIDABLE = 30            # gradient test cells below which it is inconclusive
-GRADIENT_SCORE = 0.2          # gradient test: share of decidable cells closer to grad f
-GRADIENT_REQUIRED = True      # an inconclusive gradient test gives none
-LOBE_GAIN = 0.0               # lobe comparison: ln(penalised error without / with diffraction)
-WAVELENGTH_VETO = 5.0         # wavelength ratio at or above which the wavelength test contradicts
-WAVELENGTH_REQUIRED = False   # an undecided wavelength test gives none
-WAVELENGTH_TEST = "collapse"  # the ratio the rule was calibrated on (Rule.wavelength_test)
+MIN_DECIDABLE = 100           # gradient test cells below which it is inconclusive
+GRADIENT_SCORE = 0.3          # gradient score below which the gradient test contradicts
+GRADIENT_DECISIVE = 0.5       # gradient score from which the gradient test is evidence
+GRADIENT_REQUIRED = False     # an inconclusive gradient test gives none
+LOBE_GAIN = -0.05             # lobe comparison: ln(penalised error without / with diffraction)
+WAVELENGTH_DECISIVE = 0.99    # law ratio below which the wavelength law is evidence
+WAVELENGTH_VETO = 1.25        # law ratio at or above which the wavelength law contradicts
+WAVELENGTH_TEST = "law"       # the ratio the rule reads (Rule.wavelength_test)
 COMPARED = ("full", "no_diffraction", "no_ct")
-TESTS = ("gradient", "wavelength", "lobe")
+TESTS = ("gradient", "wavelength", "lobe", "evidence")
+
+
+def _scalar(x):
+    x = np.asarray(x, dtype=float)
+    return float(x) if x.ndim == 0 else x
 
 
 @dataclass(frozen=True)
 class Rule:
     """The verdict rule and its thresholds.  ``diffraction`` when the lobe comparison keeps the
     diffraction lobe by more than ``lobe_gain`` (ln of the penalised error without diffraction over
-    the best with it; 0: brdfcl.optim.selection's choice), and neither the gradient test (where at
-    least ``min_cells`` cells decide, score >= ``gradient_score``; with ``gradient_required`` it must
-    decide) nor the wavelength test (ratio < ``wavelength_decisive``, of the wavelength law or of the
-    curve collapse as ``wavelength_test`` says; with ``wavelength_required`` it must decide)
-    contradicts it where it can decide.  The defaults are the calibrated rule (the
-    calibration compares it with the rule before it, brdfcl.analysis.calibration_summary.LEGACY);
-    scattered samples are judged by brdfcl.analysis.samples.SAMPLE_RULE.
+    the best with it; 0: brdfcl.optim.selection's choice), neither test of the physics contradicts
+    it where it decides (the gradient test where at least ``min_cells`` cells decide: score below
+    ``gradient_score``; the wavelength law: ratio at or above ``wavelength_veto``), and at least one
+    of them is evidence for it (gradient score at least ``gradient_decisive``, or a ratio below
+    ``wavelength_decisive``).  The ratio is the wavelength law's, or the curve collapse's for the
+    rules before the law test, as ``wavelength_test`` says; with ``gradient_required`` the gradient
+    test must decide.  The defaults are the calibrated rule (the calibration compares it with the
+    rule before it, brdfcl.analysis.calibration_summary.LEGACY); scattered samples, which have no
+    gradient test, are judged by the same rule without that requirement
+    (brdfcl.analysis.samples.SAMPLE_RULE).
 
-    ``margins`` gives each test's signed distance to its threshold, positive on the side of
+    ``margins`` gives each condition's signed distance to its threshold, positive on the side of
     diffraction: gradient ``score - gradient_score`` (NaN where too few cells decide), wavelength
-    ``ln(wavelength_decisive / ratio)`` (NaN where the check cannot be computed), lobe
-    ``gain - lobe_gain``."""
+    ``ln(wavelength_veto / ratio)`` (NaN where the ratio cannot be computed), lobe
+    ``gain - lobe_gain``, evidence the larger of ``score - gradient_decisive`` and
+    ``ln(wavelength_decisive / ratio)`` (of those that decide; units differ, only the sign and the
+    size within one test mean something).  Margins and verdicts take numbers or arrays."""
 
     gradient_score: float = GRADIENT_SCORE
+    gradient_decisive: float = GRADIENT_DECISIVE
     min_cells: int = MIN_DECIDABLE
-    wavelength_decisive: float = WAVELENGTH_VETO
+    wavelength_decisive: float = WAVELENGTH_DECISIVE
+    wavelength_veto: float = WAVELENGTH_VETO
     lobe_gain: float = LOBE_GAIN
     gradient_required: bool = GRADIENT_REQUIRED   # an undecided gradient test (too few cells) says none
-    wavelength_required: bool = WAVELENGTH_REQUIRED   # an undecided wavelength law says none
     wavelength_test: str = WAVELENGTH_TEST        # whose ratio: "law" (brdfcl.analysis.law) or "collapse"
 
-    def wavelength_ratio(self, law_ratio: float, collapse_ratio: float) -> float:
-        """The ratio this rule's wavelength threshold reads: the law's, or (the rule before the law
+    def wavelength_ratio(self, law_ratio, collapse_ratio):
+        """The ratio this rule's wavelength thresholds read: the law's, or (the rule before the law
         test, kept to compare) the curve collapse's."""
         return collapse_ratio if self.wavelength_test == "collapse" else law_ratio
 
     def margins(self, grad_score, grad_cells, wl_ratio, lobe_gain) -> dict:
+        s, n, r, g = (np.asarray(x, dtype=float) for x in (grad_score, grad_cells, wl_ratio, lobe_gain))
         with np.errstate(invalid="ignore", divide="ignore"):
-            g = grad_score - self.gradient_score if grad_cells >= self.min_cells else float("nan")
-            w = float(np.log(self.wavelength_decisive / wl_ratio)) if wl_ratio >= 0 else float("nan")
-        return {"gradient": float(g), "wavelength": w, "lobe": float(lobe_gain - self.lobe_gain)}
+            decided, valid = n >= self.min_cells, r >= 0
+            evidence = np.fmax(np.where(decided, s - self.gradient_decisive, np.nan),
+                               np.where(valid, np.log(self.wavelength_decisive / r), np.nan))
+            return {"gradient": _scalar(np.where(decided, s - self.gradient_score, np.nan)),
+                    "wavelength": _scalar(np.where(valid, np.log(self.wavelength_veto / r), np.nan)),
+                    "lobe": _scalar(g - self.lobe_gain), "evidence": _scalar(evidence)}
+
+    def against(self, margins: dict) -> dict:
+        """{condition: whether it speaks against diffraction} (numbers or arrays): the lobe margin
+        not positive, a test that decides and contradicts, no evidence (or, with
+        ``gradient_required``, an undecided gradient test: counted against the gradient)."""
+        m = {k: np.asarray(v, dtype=float) for k, v in margins.items()}
+        grad = m["gradient"] < 0
+        if self.gradient_required:
+            grad = grad | ~np.isfinite(m["gradient"])
+        return {"gradient": grad, "wavelength": m["wavelength"] <= 0, "lobe": ~(m["lobe"] > 0),
+                "evidence": ~(m["evidence"] >= 0)}
+
+    def diffraction(self, margins: dict):
+        """Whether the verdict is ``diffraction`` (a bool, or a bool array for array margins)."""
+        a = self.against(margins)
+        out = ~(a["gradient"] | a["wavelength"] | a["lobe"] | a["evidence"])
+        return bool(out) if out.ndim == 0 else out
 
     def verdict(self, margins: dict) -> str:
-        """``diffraction`` when the lobe margin is positive, the gradient margin not negative and
-        the wavelength margin positive, each where its test decides (NaN: it does not; with
-        ``gradient_required`` the gradient test must decide)."""
-        if not margins["lobe"] > 0 or margins["gradient"] < 0 or margins["wavelength"] <= 0:
-            return "none"
-        if self.gradient_required and not np.isfinite(margins["gradient"]):
-            return "none"
-        if self.wavelength_required and not np.isfinite(margins["wavelength"]):
-            return "none"
-        return "diffraction"
+        """``diffraction`` when no condition speaks against it (``against``), else ``none``."""
+        return "diffraction" if self.diffraction(margins) else "none"
 
     def binding(self, margins: dict) -> str:
-        """The tests the verdict hangs on: for ``diffraction`` the one nearest its threshold (least
-        margin; units differ, so this names it rather than ranks it), for ``none`` every test
-        against it."""
+        """The conditions the verdict hangs on: for ``diffraction`` the one nearest its threshold
+        (least margin; units differ, so this names it rather than ranks it), for ``none`` every
+        condition against it."""
         if self.verdict(margins) == "diffraction":
             decided = {k: v for k, v in margins.items() if np.isfinite(v)}
             return min(decided, key=lambda k: decided[k])
-        undecided = self.gradient_required and not np.isfinite(margins["gradient"])
-        no_wavelength = self.wavelength_required and not np.isfinite(margins["wavelength"])
-        against = {"gradient": margins["gradient"] < 0 or undecided,
-                   "wavelength": margins["wavelength"] <= 0 or no_wavelength, "lobe": not margins["lobe"] > 0}
-        return "+".join(k for k in TESTS if against[k])
+        against = self.against(margins)
+        return "+".join(k for k in TESTS if bool(against[k]))
 
 
 RULE = Rule()
@@ -153,7 +174,8 @@ class Analysis:
         the lobe gain itself: the columns analysis.csv carries beside the verdict."""
         m = self.margins_raw()
         return {"margin_gradient": _fmt(m["gradient"]), "margin_wavelength": _fmt(m["wavelength"]),
-                "margin_lobe": _fmt(m["lobe"]), "lobe_gain": _fmt(m["lobe"] + self.rule.lobe_gain),
+                "margin_lobe": _fmt(m["lobe"]), "margin_evidence": _fmt(m["evidence"]),
+                "lobe_gain": _fmt(m["lobe"] + self.rule.lobe_gain),
                 "verdict_by": self.rule.binding(m)}
 
     @property
@@ -199,9 +221,13 @@ def final_fit(fits: dict, specs: dict, final_model: str):
 
 def final_key(verdict: str, selected: str, fits: dict, specs: dict) -> str:
     """The variant a material's final fit is: the lobe comparison's choice, but without the
-    diffraction lobe where the verdict is ``none``."""
-    if verdict == "none" and Model(specs[selected]).has_role("diffraction"):
+    diffraction lobe where the verdict is ``none``, and the full model where the verdict is
+    ``diffraction`` although the choice (within the rule's lobe tolerance) dropped the lobe."""
+    has = Model(specs[selected]).has_role("diffraction")
+    if verdict == "none" and has:
         return "no_diffraction" if "no_diffraction" in fits else selected
+    if verdict == "diffraction" and not has and "full" in fits:
+        return "full"
     return selected
 
 

@@ -11,13 +11,15 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
+
 from brdfcl.analysis import power
 from brdfcl.analysis.analyze import Rule
 
 FP_TARGET = 0.05
 
-LEGACY = Rule(gradient_score=0.2, min_cells=30, wavelength_decisive=5.0, lobe_gain=0.0, gradient_required=True,
-              wavelength_test="collapse")
+LEGACY = Rule(gradient_score=0.2, gradient_decisive=0.2, min_cells=30, wavelength_decisive=0.0, wavelength_veto=5.0,
+              lobe_gain=0.0, gradient_required=True, wavelength_test="collapse")
 """The rule before the wavelength law's model comparison (calibrated on the curve collapse: 0.2
 gradient score where at least 30 cells must decide, a veto at a collapse ratio of 5), which
 calibration.md compares with the one calibrated now."""
@@ -30,8 +32,10 @@ def rule_text(rule: Rule) -> str:
     g = (f">= {rule.min_cells} gradient cells decide and score >= {rule.gradient_score:g}" if rule.gradient_required
          else f"gradient score >= {rule.gradient_score:g} where >= {rule.min_cells} cells decide")
     w = "curve-collapse ratio" if rule.wavelength_test == "collapse" else "law ratio"
-    need = " (required)" if rule.wavelength_required else ""
-    return f"lobe gain > {rule.lobe_gain:g}, {g}, {w} < {rule.wavelength_decisive:g}{need}"
+    evidence = [f"gradient score >= {rule.gradient_decisive:g}"] if np.isfinite(rule.gradient_decisive) else []
+    evidence += [f"{w} < {rule.wavelength_decisive:g}"] if rule.wavelength_decisive > 0 else []
+    veto = f"{w} < {rule.wavelength_veto:g}" if np.isfinite(rule.wavelength_veto) else f"no {w} veto"
+    return f"lobe gain > {rule.lobe_gain:g}, {g}, {veto}; evidence: {' or '.join(evidence) or 'none needed'}"
 
 
 def numeric_rows(rows) -> list[dict]:

@@ -19,8 +19,8 @@ Thresholds are chosen on the no-diffraction rows only (``threshold_at``, ``test_
 smallest one that leaves at most a given share of them detected, on the original and on the
 round-tripped tables alike.  ``choose_rule`` picks the verdict's thresholds jointly on a grid of
 round values: the combination with the highest detection over the diffraction rows whose
-false-positive rate is at most the target on each table kind separately; ``split_check`` chooses
-on half the cases and counts on the other half.
+false-positive rate is at most the target on each no-diffraction class of each table kind;
+``split_check`` chooses on half the cases and counts on the other half.
 """
 from __future__ import annotations
 
@@ -56,7 +56,7 @@ def detects(row, test, threshold=None, rule: Rule | None = None) -> bool:
     """Whether a test (or ``verdict`` under ``rule``) calls the row diffraction."""
     if test == "verdict":
         rule = rule or Rule()
-        return rule.verdict(rule_margins(row, rule)) == "diffraction"
+        return bool(rule.diffraction(rule_margins(row, rule)))
     s = statistic(row, test)
     return bool(np.isfinite(s) and s >= threshold) or s == np.inf
 
@@ -125,48 +125,74 @@ def test_threshold(rows, test, fp=0.05):
     return max(threshold_at([r for r in nulls if r["table"] == k], test, fp) for k in kinds)
 
 
-GRID = {"gradient_score": (0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7),
-        "lobe_gain": (-0.05, -0.025, 0.0, 0.025, 0.05, 0.1, 0.2, 0.4),
-        "wavelength_decisive": (0.9, 0.95, 0.98, 1.0, 1.02, 1.05, 1.1, 1.25, 1.5, 2.0),
+GRID = {"gradient_score": (0.0, 0.1, 0.2, 0.3),
+        "gradient_decisive": (0.3, 0.4, 0.5, 0.6, 0.7, 0.8, float("inf")),
+        "wavelength_decisive": (0.0, 0.9, 0.95, 0.97, 0.98, 0.99, 1.0),
+        "wavelength_veto": (1.02, 1.05, 1.1, 1.25, 1.5, 2.0, float("inf")),
+        "lobe_gain": (-0.1, -0.05, -0.025, 0.0, 0.025, 0.05, 0.1),
         "gradient_required": (False, True),
-        "wavelength_required": (False, True),
         "min_cells": (30, 100)}
 """The verdict rules ``choose_rule`` tries: round thresholds, so that the choice cannot follow
-single calibration cases."""
+single calibration cases (inf and 0: the test is never evidence, never contradicts)."""
 
 
 def _kind_rates(rows, rule, kinds):
     return [rate([r for r in rows if r["table"] == k], "verdict", rule=rule) for k in kinds]
 
 
+class _Columns:
+    """Rows as arrays for Rule.margins, with each row's (table kind, class) group."""
+
+    def __init__(self, rows):
+        self.score = np.array([float(r["grad_score"]) for r in rows])
+        self.cells = np.array([int(r["grad_cells"]) for r in rows])
+        self.law = np.array([float(r["law_ratio"]) for r in rows])
+        self.collapse = np.array([float(r["wl_ratio"]) for r in rows])
+        self.gain = np.array([float(r["lobe_gain"]) for r in rows])
+        self.null = np.array([float(r["share"]) == 0 for r in rows])
+        groups = sorted({(r["table"], r["class"]) for r in rows})
+        self.group = np.array([groups.index((r["table"], r["class"])) for r in rows], dtype=int)
+        self.kind = np.array([r["table"] for r in rows])
+        self.kinds = sorted(set(self.kind))
+
+    def detected(self, rule: Rule) -> np.ndarray:
+        ratio = rule.wavelength_ratio(self.law, self.collapse)
+        return np.asarray(rule.diffraction(rule.margins(self.score, self.cells, ratio, self.gain)), dtype=bool)
+
+
 def choose_rule(rows, fp=0.05, base: Rule | None = None, grid=None):
     """The verdict rule chosen on the calibration rows: (Rule, its detection rate).
 
     The rule keeps its form (the lobe comparison decides, the gradient test and the wavelength law
-    may contradict, either may be required to decide); only its settings move, over
-    ``GRID``.  Admissible: a false-positive rate at most ``fp`` on the no-diffraction rows of each
-    table kind separately.  Detection: the mean over the table kinds of the rate over the
+    may contradict, one of them must be evidence, the gradient test may be required to decide);
+    only its settings move, over ``GRID``.  Admissible: a false-positive rate at most ``fp`` on the
+    rows of each no-diffraction class of each table kind separately (a class of fewer than 1/fp
+    cases may have none).  Detection: the mean over the table kinds of the rate over the
     diffraction rows.  Kept, by the one-standard-error rule of model selection: among the
     admissible rules whose detection is within one binomial standard error of the best, the one with
     the fewest false positives; then the higher detection; then the stricter thresholds."""
     base = base or Rule()
     grid = grid or GRID
-    nulls = [r for r in rows if float(r["share"]) == 0]
-    power_rows = [r for r in rows if float(r["share"]) > 0]
-    kinds = sorted({r["table"] for r in rows})
+    cols = _Columns(rows)
+    null_groups = np.unique(cols.group[cols.null])
+    sizes = np.bincount(cols.group[cols.null], minlength=cols.group.max() + 1)
+    allowed = np.floor(fp * sizes + 1e-9)
+    power_of = [(~cols.null) & (cols.kind == k) for k in cols.kinds]
     names = list(grid)
     scored = []
     for values in itertools.product(*(grid[k] for k in names)):
         rule = replace(base, **dict(zip(names, values)))
-        fps = _kind_rates(nulls, rule, kinds)
-        if any(n and h / n > fp + 1e-12 for h, n in fps):
+        hit = cols.detected(rule)
+        fps = np.bincount(cols.group[cols.null & hit], minlength=sizes.size)
+        if np.any(fps[null_groups] > allowed[null_groups]):
             continue
-        hits = _kind_rates(power_rows, rule, kinds)
-        p = float(np.mean([h / max(n, 1) for h, n in hits]))
-        se = float(np.sqrt(sum(h / max(n, 1) * (1 - h / max(n, 1)) / max(n, 1) for h, n in hits)) / len(hits))
-        strict = (rule.gradient_required, rule.wavelength_required, rule.gradient_score, rule.lobe_gain,
-                  -rule.wavelength_decisive, rule.min_cells)
-        scored.append((p, se, -sum(h for h, _ in fps), strict, rule))
+        rates = [float(hit[m].mean()) if m.any() else 0.0 for m in power_of]
+        p = float(np.mean(rates))
+        se = float(np.sqrt(sum(q * (1 - q) / max(int(m.sum()), 1) for q, m in zip(rates, power_of)))
+                   / len(rates))
+        strict = (rule.gradient_required, rule.gradient_score, -rule.gradient_decisive, rule.lobe_gain,
+                  -rule.wavelength_decisive, -rule.wavelength_veto, rule.min_cells)
+        scored.append((p, se, -int(fps.sum()), strict, rule))
     if not scored:
         return None, float("nan")
     best_p, best_se = max((x[0], x[1]) for x in scored)

@@ -7,8 +7,8 @@ is not run and the report says so.  The wavelength law is the tables' model comp
 (brdfcl.analysis.law): the full model fitted with each band's wavelength and with every band at
 one wavelength, measured over the wide-angle samples; with tens of bands it is far sharper than on
 a table's three channels.  The verdict reads the same statistic under the same thresholds as a
-table's (``SAMPLE_RULE``: brdfcl.analysis.analyze.RULE with the law required and the gradient
-test, which is not run, not), so that a verdict means one thing.
+table's (``SAMPLE_RULE``: brdfcl.analysis.analyze.RULE without requiring the gradient test,
+which is not run, so that the evidence must come from the law), so that a verdict means one thing.
 
 The collapse of the residual band curves (brdfcl.analysis.spectral, drawn in the figure) is
 reported beside it but does not decide: it subtracts a fit whose per-band diffuse level can
@@ -44,8 +44,7 @@ from brdfcl.data.samples import Samples
 from brdfcl.model.compose import Model
 from brdfcl.optim.selection import select
 
-SAMPLE_RULE = replace(RULE, wavelength_decisive=1.0, gradient_required=False, wavelength_required=True,
-                      wavelength_test="law")
+SAMPLE_RULE = replace(RULE, gradient_required=False)
 GRADIENT_NOT_RUN = "not run: scattered samples have no (theta_h, theta_d) grid"
 
 

@@ -13,10 +13,10 @@ so the 1/lambda shift in log f equals an amplitude change, which the per-channel
 scaling removes (MERL-proxy metals sit there, ratio ~ 1).  The check therefore only
 contradicts diffraction when it is decisive, ``ratio >= DECISIVE``.
 
-``DECISIVE`` labels the check's own answer (``consistent``).  The verdict vetoes only at
-brdfcl.analysis.analyze.WAVELENGTH_VETO (5, calibrated): under MERL-like noise, real halos often
-give ratios between 1.5 and 5, so a veto at DECISIVE would remove detections without removing
-false positives (bench/results/calibration/calibration.md).
+``DECISIVE`` labels the check's own answer (``consistent``).  The verdict does not read the
+collapse: it reads the wavelength law's model comparison (brdfcl.analysis.law), which needs no
+binning or scaling; the calibration reports the collapse beside it, and the rule before the law
+test read it with a veto at 5 (bench/results/calibration/calibration.md).
 """
 from __future__ import annotations
 

@@ -6,12 +6,12 @@ import numpy as np
 
 from brdfcl._words import count
 from brdfcl.analysis import power
-from brdfcl.analysis.analyze import RULE
+from brdfcl.analysis.analyze import MIN_DECIDABLE, RULE
 from brdfcl.analysis.calibration_summary import FP_TARGET, LEGACY, Summary, detector, rule_text
 
 LABELS = {"gradient": "gradient test", "wavelength": "wavelength law", "collapse": "curve collapse",
           "lobe": "lobe comparison", "verdict": "verdict"}
-STATISTIC = {"gradient": "score (>= 30 decidable cells)", "wavelength": "-ln(law ratio)",
+STATISTIC = {"gradient": f"score (>= {MIN_DECIDABLE} decidable cells)", "wavelength": "-ln(law ratio)",
              "collapse": "-ln(collapse ratio)", "lobe": "lobe gain"}
 
 
@@ -57,8 +57,9 @@ def markdown(summary: Summary, fp=FP_TARGET, epochs=None, timing=None) -> str:
           f"* legacy (the rule before the law test): {rule_text(LEGACY)};",
           f"* calibrated: {rule_text(chosen)}: of the rules on a grid of round thresholds "
           f"(brdfcl.analysis.power.GRID), the one with the highest detection over the diffraction cases "
-          f"(mean of the two table kinds) with <= {100 * fp:.0f}% false positives on each table kind's "
-          f"no-diffraction cases; false positives {pct(*res['fp']['verdict:calibrated', 'original'])} original, "
+          f"(mean of the two table kinds) with <= {100 * fp:.0f}% false positives on each no-diffraction class "
+          f"of each table kind, by the one-standard-error rule; false positives "
+          f"{pct(*res['fp']['verdict:calibrated', 'original'])} original, "
           + (f"{pct(*res['fp']['verdict:calibrated', 'roundtrip'])} round trip" if "roundtrip" in kinds else "")
           + ";",
           f"* in the code (brdfcl.analysis.analyze.RULE): {rule_text(RULE)}"

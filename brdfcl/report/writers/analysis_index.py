@@ -19,12 +19,13 @@ from brdfcl.report.writers.analysis_figures import figure_paths, of_samples
 from brdfcl.report.writers.base import ANALYSIS, Item, Job, Writer
 
 COLUMNS = ["material", "verdict", "verdict_by", "margin_gradient", "margin_wavelength", "margin_lobe",
-           "selected_lobes", "grad_score_g", "grad_cells", "grad_band_deg_g",
+           "margin_evidence", "selected_lobes", "grad_score_g", "grad_cells", "grad_band_deg_g",
            "law_ratio", "collapse_ratio", "lambda_exponent",
            "rmse_log_full", "rmse_log_no_diffraction", "rmse_log_no_ct",
            "peak_share_diffraction", "rmse_log_full_free", "peak_share_free"]
 HEADS = {"verdict_by": "verdict hangs on", "margin_gradient": "margin gradient",
-         "margin_wavelength": "margin wavelength", "margin_lobe": "margin lobe", "selected_lobes": "lobes kept",
+         "margin_wavelength": "margin wavelength", "margin_lobe": "margin lobe",
+         "margin_evidence": "margin evidence", "selected_lobes": "lobes kept",
          "grad_score_g": "gradient score G", "grad_cells": "decided cells",
          "grad_band_deg_g": "band theta_h (deg) G", "law_ratio": "wavelength law ratio",
          "collapse_ratio": "collapse ratio",
@@ -50,9 +51,12 @@ INTRO = ("<p>Gradient test: share of the decidable wide-angle cells whose data g
          "comparison: penalised rmse_log with and without each lobe. Peak share: part of the fitted "
          "value at the specular peak carried by the diffraction lobe; the fits keep it at most equal to "
          "Cook-Torrance's (the talk's model), and the *_free columns show the full fit without that "
-         "constraint. Margins: each test's signed distance to its calibrated threshold, positive on the "
-         "side of diffraction (bench/results/calibration/NOTE.md: thresholds chosen on synthetic "
-         "materials for at most 5% false positives).</p><table><tr>")
+         "constraint. Margins: each test's signed distance to the calibrated threshold at which it "
+         "contradicts diffraction, and (evidence) the larger distance of the gradient test and the law "
+         "to the threshold at which they are evidence for it; positive on the side of diffraction; a "
+         "verdict diffraction needs every margin positive (bench/results/calibration/NOTE.md: "
+         "thresholds chosen on synthetic materials for at most 5% false positives in each class "
+         "without diffraction).</p><table><tr>")
 
 
 def write_index(out: str | os.PathLike, analyses: list[Any]) -> None:
