@@ -174,6 +174,7 @@ def proxies(out, batch=10):
                          "verdict": a.verdict, "verdict_by": RULE.binding(m_new),
                          "grad_score": a.gradient.mean_score, "grad_cells": int(a.gradient.n_cells.sum()),
                          "wl_ratio": a.wavelength.ratio, "law_ratio": a.law_ratio,
+                         "law_colour_ratio": a.law.colour_ratio,
                          "lobe_gain": m_new["lobe"] + RULE.lobe_gain,
                          **{f"margin_{k}": v for k, v in m_new.items()},
                          "fitted_share": fitted_share(a),
@@ -202,7 +203,7 @@ def why(r, rule, name):
         out.append(f"gradient {r['grad_score']:.2f} < {rule.gradient_score:g}")
     elif rule.gradient_required and not np.isfinite(m["gradient"]):
         out.append(f"gradient undecided ({r['grad_cells']} cells)")
-    ratio = rule.wavelength_ratio(r["law_ratio"], r["wl_ratio"])
+    ratio = rule.wavelength_ratio(r["law_ratio"], r["wl_ratio"], r.get("law_colour_ratio", float("nan")))
     if m["wavelength"] <= 0:
         out.append(f"{rule.wavelength_test} ratio {ratio:.3f} >= {rule.wavelength_veto:g}")
     if not m["evidence"] >= 0:
@@ -222,8 +223,8 @@ def proxies_markdown(out, small=0.05):
     how many verdicts hang on a small margin."""
     rows = read_rows(out / "proxies.csv")
     for r in rows:
-        for k in ("grad_score", "wl_ratio", "law_ratio", "lobe_gain", "margin_gradient", "margin_wavelength",
-                  "margin_lobe", "margin_evidence", "fitted_share"):
+        for k in ("grad_score", "wl_ratio", "law_ratio", "law_colour_ratio", "lobe_gain", "margin_gradient",
+                  "margin_wavelength", "margin_lobe", "margin_evidence", "fitted_share"):
             r[k] = float(r[k]) if r.get(k) not in ("", None) else float("nan")
         r["grad_cells"] = int(r["grad_cells"])
         r["share"] = float("nan")

@@ -21,6 +21,8 @@ def _fit(model, values, ok=True):
 def test_law_ratio_and_grey_channels():
     assert LawTest(0.01, 0.02, 5).ratio == pytest.approx(0.5)
     assert np.isnan(NO_TEST.ratio) and LawTest(0.01, 0.0, 5).ratio == np.inf and np.isnan(LawTest(0, 0, 5).ratio)
+    assert LawTest(0.01, 0.02, 5, 0.03, 0.01).colour_ratio == pytest.approx(3.0)
+    assert np.isnan(NO_TEST.colour_ratio) and np.isnan(LawTest(0.01, 0.02, 5).colour_ratio)
     grey = grey_lambdas((0.4, 0.5, 0.6, 0.7))
     assert len(set(grey)) == 4 and max(grey) / min(grey) - 1 < 1e-4 and grey[0] == 0.6
 
@@ -47,12 +49,33 @@ def test_the_law_prefers_the_wavelength_a_halo_was_made_with():
     fits = {"full": _fit(model, v), GREY: _fit(grey, v)}
     t = law_test(fits, SPEC, model.lambdas, cells, made)
     assert t.error == pytest.approx(0, abs=1e-12) and t.error_grey > 1e-3 and t.ratio < 1e-6
+    assert t.colour == pytest.approx(0, abs=1e-12) and t.colour_grey > 1e-3 and t.colour_ratio < 1e-6
     assert t.n_cells == idx.size
     assert law_test(fits, SPEC, model.lambdas, cells, made_grey).ratio == np.inf
     assert law_test({"full": fits["full"]}, SPEC, model.lambdas, cells, made) is NO_TEST
     assert law_test({**fits, GREY: _fit(grey, v, ok=False)}, SPEC, model.lambdas, cells, made) is NO_TEST
-    e, n = wide_error(model, fits["full"].params, cells, np.full_like(made, np.nan))
-    assert np.isnan(e) and n == 0
+    e, n, c = wide_error(model, fits["full"].params, cells, np.full_like(made, np.nan))
+    assert np.isnan(e) and n == 0 and np.isnan(c)
+
+
+def test_the_colour_ratio_ignores_a_misfit_the_channels_share():
+    """A misfit common to every channel (the data x a factor that varies over the cells) changes
+    E of both fits but not their colour errors C: the colour ratio of a halo stays 0."""
+    model = Model(SPEC)
+    v = model.defaults()
+    v[model.names.index("diffraction.a")] = 2.0
+    cells, idx, _ = wide_cells()
+    made = model.reference(cells, v, jacobian=False)
+    grey = Model(SPEC, lambdas=grey_lambdas(model.lambdas))
+    fits = {"full": _fit(model, v), GREY: _fit(grey, v)}
+    shared = made * np.exp(np.random.default_rng(0).normal(0, 0.5, idx.size))
+    t0, t = law_test(fits, SPEC, model.lambdas, cells, made), law_test(fits, SPEC, model.lambdas, cells, shared)
+    assert t.error > 0.3 and t.error_grey > 0.3 and 0.9 < t.ratio <= 1.0
+    assert t.colour == pytest.approx(t0.colour, abs=1e-12) and t.colour_grey == pytest.approx(t0.colour_grey, rel=1e-9)
+    assert t.colour_ratio < 1e-6
+    one = law_test({"full": _fit(Model(SPEC, lambdas=(0.55,)), v), GREY: _fit(Model(SPEC, lambdas=(0.55,)), v)},
+                   SPEC, (0.55,), cells, made[1:2])
+    assert np.isfinite(one.ratio) and np.isnan(one.colour_ratio)          # one channel: no colour
 
 
 def test_film_reflectance_is_airy():

@@ -90,12 +90,12 @@ class Rule:
     wavelength_veto: float = WAVELENGTH_VETO
     lobe_gain: float = LOBE_GAIN
     gradient_required: bool = GRADIENT_REQUIRED   # an undecided gradient test (too few cells) says none
-    wavelength_test: str = WAVELENGTH_TEST        # whose ratio: "law" (brdfcl.analysis.law) or "collapse"
+    wavelength_test: str = WAVELENGTH_TEST        # whose ratio: "law", "colour" (brdfcl.analysis.law), "collapse"
 
-    def wavelength_ratio(self, law_ratio, collapse_ratio):
-        """The ratio this rule's wavelength thresholds read: the law's, or (the rule before the law
-        test, kept to compare) the curve collapse's."""
-        return collapse_ratio if self.wavelength_test == "collapse" else law_ratio
+    def wavelength_ratio(self, law_ratio, collapse_ratio, colour_ratio=float("nan")):
+        """The ratio this rule's wavelength thresholds read: the law's, its colour ratio's, or (the
+        rule before the law test, kept to compare) the curve collapse's."""
+        return {"collapse": collapse_ratio, "colour": colour_ratio}.get(self.wavelength_test, law_ratio)
 
     def margins(self, grad_score, grad_cells, wl_ratio, lobe_gain) -> dict:
         s, n, r, g = (np.asarray(x, dtype=float) for x in (grad_score, grad_cells, wl_ratio, lobe_gain))
@@ -253,6 +253,7 @@ def law_columns(a) -> dict:
     and samples: its ratio, the two wide-angle errors, the cells they cover, the grey fit's rmse_log."""
     grey = a.fits.get(GREY)
     return {"law_ratio": _fmt(a.law.ratio), "law_error": _fmt(a.law.error), "law_error_grey": _fmt(a.law.error_grey),
+            "law_colour_ratio": _fmt(a.law.colour_ratio),
             "law_cells": a.law.n_cells, "rmse_log_full_grey": _fmt(grey.errors["rmse_log"]) if grey else ""}
 
 
@@ -313,7 +314,8 @@ def margins_of(a: MaterialAnalysis, rule: Rule | None = None) -> dict:
     """{test: margin} of a MaterialAnalysis under a rule (default: the one it was judged by)."""
     rule = rule or a.rule
     return rule.margins(a.gradient.mean_score, int(a.gradient.n_cells.sum()),
-                        rule.wavelength_ratio(a.law_ratio, a.wavelength.ratio), lobe_gain(a.penalised, a.specs))
+                        rule.wavelength_ratio(a.law_ratio, a.wavelength.ratio, a.law.colour_ratio),
+                        lobe_gain(a.penalised, a.specs))
 
 
 def analyze_material(name, brdf, fits, specs, rule: Rule | None = None) -> MaterialAnalysis:
@@ -330,7 +332,7 @@ def analyze_material(name, brdf, fits, specs, rule: Rule | None = None) -> Mater
                / np.pi for ch in range(3)]
     wl = wavelength_check(brdf, diffuse, full_model.lambdas)
     law = table_law(fits, specs["full"], full_model.lambdas, brdf)
-    m = rule.margins(gm.mean_score, int(gm.n_cells.sum()), rule.wavelength_ratio(law.ratio, wl.ratio),
+    m = rule.margins(gm.mean_score, int(gm.n_cells.sum()), rule.wavelength_ratio(law.ratio, wl.ratio, law.colour_ratio),
                      lobe_gain(pen, specs))
     verdict = rule.verdict(m)
     free = fits.get("full_free")

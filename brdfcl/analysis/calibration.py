@@ -380,6 +380,7 @@ def statistics(a) -> dict:
     without = [pen[k] for k in pen if "diffraction" not in a.specs[k]]
     return {"grad_score": g.mean_score, "grad_cells": int(g.n_cells.sum()), "wl_ratio": w.ratio,
             "law_ratio": a.law_ratio, "law_error": a.law.error, "law_error_grey": a.law.error_grey,
+            "law_colour_ratio": a.law.colour_ratio,
             "rmse_grey": a.fits[GREY].errors["rmse_log"],
             "lobe_gain": float(np.log(min(without) / min(with_d))) if with_d and without else float("nan"),
             "rmse_full": a.fits["full"].errors["rmse_log"],

@@ -23,15 +23,15 @@ LEGACY = Rule(gradient_score=0.2, gradient_decisive=0.2, min_cells=30, wavelengt
 """The rule before the wavelength law's model comparison (calibrated on the curve collapse: 0.2
 gradient score where at least 30 cells must decide, a veto at a collapse ratio of 5), which
 calibration.md compares with the one calibrated now."""
-NUMERIC = ("share", "grad_score", "wl_ratio", "law_ratio", "law_error", "law_error_grey", "lobe_gain", "noise",
-           "missing", "rmse_full", "rmse_no_diffraction", "rmse_grey")
+NUMERIC = ("share", "grad_score", "wl_ratio", "law_ratio", "law_colour_ratio", "law_error", "law_error_grey",
+           "lobe_gain", "noise", "missing", "rmse_full", "rmse_no_diffraction", "rmse_grey")
 
 
 def rule_text(rule: Rule) -> str:
     """A verdict rule in words."""
     g = (f">= {rule.min_cells} gradient cells decide and score >= {rule.gradient_score:g}" if rule.gradient_required
          else f"gradient score >= {rule.gradient_score:g} where >= {rule.min_cells} cells decide")
-    w = "curve-collapse ratio" if rule.wavelength_test == "collapse" else "law ratio"
+    w = {"collapse": "curve-collapse ratio", "colour": "law colour ratio"}.get(rule.wavelength_test, "law ratio")
     evidence = [f"gradient score >= {rule.gradient_decisive:g}"] if np.isfinite(rule.gradient_decisive) else []
     evidence += [f"{w} < {rule.wavelength_decisive:g}"] if rule.wavelength_decisive > 0 else []
     veto = f"{w} < {rule.wavelength_veto:g}" if np.isfinite(rule.wavelength_veto) else f"no {w} veto"

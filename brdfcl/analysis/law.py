@@ -22,8 +22,14 @@ amplitude change, which each channel's own amplitude absorbs) and the ratio stay
 test cannot decide there, and the verdict's threshold (brdfcl.analysis.analyze.Rule) says how far
 below 1 it must be.
 
+Beside it the same comparison on the colour alone: ``colour_ratio`` = C(lambda_c) / C(one lambda),
+C the RMS of each channel's log residual minus the mean of the channels' at that cell.  A misfit
+that the channels share (a halo shape the model's power spectrum cannot follow, a sheen it has no
+lobe for) cancels there, and what remains is how the colour varies over the angles, which is what
+the law predicts; it is reported and calibrated beside ``law_ratio``.
+
 Materials whose colour changes with angle for other reasons (thin films, dispersion of a metal's
-Fresnel term, a roughness per channel) can move the ratio either way: the calibration
+Fresnel term, a roughness per channel) can move either ratio either way: the calibration
 (brdfcl.analysis.calibration) measures them as no-diffraction classes.
 """
 from __future__ import annotations
@@ -44,22 +50,33 @@ GREY_STEP = 1e-5              # the grey channels' relative offsets, so that the
 WIDE_STRIDE = 5               # a table's wide-angle cells: every n-th (about 140 000 of them)
 
 
+def _ratio(a: float, b: float) -> float:
+    if not (np.isfinite(a) and np.isfinite(b)) or b < 0:
+        return float("nan")
+    if b == 0:
+        return float("inf") if a > 0 else float("nan")
+    return float(a / b)
+
+
 @dataclass(frozen=True)
 class LawTest:
-    """The two fits' errors in the wide-angle region (``wide_error``) and their ratio."""
+    """The two fits' errors in the wide-angle region (``wide_error``) and their ratios."""
 
     error: float                 # E of the full model with each channel's wavelength
     error_grey: float            # E of the full model with every channel at one wavelength
     n_cells: int                 # region cells (or samples) with a measured value
+    colour: float = float("nan")        # C of the full model with each channel's wavelength
+    colour_grey: float = float("nan")   # C with every channel at one wavelength
 
     @property
     def ratio(self) -> float:
         """``law_ratio``: below 1, the wavelength enters as diffraction predicts (NaN: no test)."""
-        if not (np.isfinite(self.error) and np.isfinite(self.error_grey)) or self.error_grey < 0:
-            return float("nan")
-        if self.error_grey == 0:
-            return float("inf") if self.error > 0 else float("nan")
-        return float(self.error / self.error_grey)
+        return _ratio(self.error, self.error_grey)
+
+    @property
+    def colour_ratio(self) -> float:
+        """``colour_ratio``: the same on the colour alone (NaN: no test, or a single channel)."""
+        return _ratio(self.colour, self.colour_grey)
 
 
 NO_TEST = LawTest(float("nan"), float("nan"), 0)
@@ -93,15 +110,22 @@ def wide_samples(samples, cutoff_deg: float | None = MAX_TI_DEG) -> np.ndarray:
     return samples.mask(cut) & (th >= np.radians(WIDE_TH_DEG)) & (td <= np.radians(MAX_TD_DEG))
 
 
-def wide_error(model: Model, params: dict, cells: Cells, values: np.ndarray) -> tuple[float, int]:
-    """(E, cells used): RMS over ``cells`` of ln(model / measured) where both are positive;
-    ``values`` (C, n) the measured values there (NaN: missing)."""
+def wide_error(model: Model, params: dict, cells: Cells, values: np.ndarray) -> tuple[float, int, float]:
+    """(E, cells used, C): E the RMS over ``cells`` of ln(model / measured) where both are positive;
+    C the RMS of those residuals minus their mean over the channels, at the cells where every
+    channel has one (NaN for a single channel); ``values`` (C, n) the measured values there (NaN:
+    missing)."""
     p = model.reference(cells, model.only_lobes(params, None), jacobian=False)
     ok = np.isfinite(values) & (values > 0) & (p > 0)
     if not ok.any():
-        return float("nan"), 0
-    r = np.log(p[ok] / values[ok])
-    return float(np.sqrt(np.mean(r * r))), int(ok.all(axis=0).sum())
+        return float("nan"), 0, float("nan")
+    r = np.log(np.where(ok, p, 1.0) / np.where(ok, values, 1.0))
+    every = ok.all(axis=0)
+    e = float(np.sqrt(np.mean(r[ok] ** 2)))
+    if r.shape[0] < 2 or not every.any():
+        return e, int(every.sum()), float("nan")
+    d = r[:, every] - r[:, every].mean(axis=0)
+    return e, int(every.sum()), float(np.sqrt(np.mean(d * d)))
 
 
 def law_test(fits: dict, spec: str, lambdas, cells: Cells, values: np.ndarray) -> LawTest:
@@ -110,9 +134,9 @@ def law_test(fits: dict, spec: str, lambdas, cells: Cells, values: np.ndarray) -
     full, grey = fits.get("full"), fits.get(GREY)
     if full is None or grey is None or not (full.success and grey.success):
         return NO_TEST
-    e, n = wide_error(Model(spec, lambdas=tuple(lambdas)), full.params, cells, values)
-    e_grey, _ = wide_error(Model(spec, lambdas=grey_lambdas(lambdas)), grey.params, cells, values)
-    return LawTest(e, e_grey, n)
+    e, n, c = wide_error(Model(spec, lambdas=tuple(lambdas)), full.params, cells, values)
+    e_grey, _, c_grey = wide_error(Model(spec, lambdas=grey_lambdas(lambdas)), grey.params, cells, values)
+    return LawTest(e, e_grey, n, c, c_grey)
 
 
 def table_law(fits: dict, spec: str, lambdas, brdf: np.ndarray) -> LawTest:

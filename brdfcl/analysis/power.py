@@ -9,6 +9,8 @@ evidence for diffraction, and detects where it reaches a threshold:
 * ``wavelength``: ``-ln(law_ratio)`` (the wavelength law, brdfcl.analysis.law: the full model
   with each channel's wavelength fits the wide-angle region better than with one: law_ratio < 1 is
   a statistic > 0);
+* ``colour``: ``-ln(law_colour_ratio)``, the same comparison on the colour alone (each channel's
+  log residual minus the channels' mean), measured to be calibrated; no rule reads it yet;
 * ``collapse``: ``-ln(ratio)`` of the curve collapse (brdfcl.analysis.wavelength: the channels'
   binned curves collapse better against f_c than against f0), the law's picture, measured for
   comparison; no rule reads it;
@@ -31,15 +33,16 @@ import numpy as np
 
 from brdfcl.analysis.analyze import MIN_DECIDABLE, Rule
 
-TESTS = ("gradient", "wavelength", "collapse", "lobe")
+TESTS = ("gradient", "wavelength", "colour", "collapse", "lobe")
+RATIOS = {"wavelength": "law_ratio", "colour": "law_colour_ratio", "collapse": "wl_ratio"}   # a row's ratio tests
 
 
 def statistic(row, test, min_cells=MIN_DECIDABLE) -> float:
     """The test's statistic of one row (NaN where the test cannot decide)."""
     if test == "gradient":
         return float(row["grad_score"]) if int(row["grad_cells"]) >= min_cells else float("nan")
-    if test in ("wavelength", "collapse"):
-        r = float(row["law_ratio" if test == "wavelength" else "wl_ratio"])
+    if test in RATIOS:
+        r = float(row.get(RATIOS[test], "nan"))
         return float(-np.log(r)) if r > 0 else (float("inf") if r == 0 else float("nan"))
     if test == "lobe":
         return float(row["lobe_gain"])
@@ -47,7 +50,8 @@ def statistic(row, test, min_cells=MIN_DECIDABLE) -> float:
 
 
 def rule_margins(row, rule: Rule) -> dict:
-    ratio = rule.wavelength_ratio(float(row["law_ratio"]), float(row["wl_ratio"]))
+    ratio = rule.wavelength_ratio(float(row["law_ratio"]), float(row["wl_ratio"]),
+                                  float(row.get("law_colour_ratio", "nan")))
     return rule.margins(float(row["grad_score"]), int(row["grad_cells"]), ratio,
                         float(row["lobe_gain"]))
 
@@ -148,6 +152,7 @@ class _Columns:
         self.cells = np.array([int(r["grad_cells"]) for r in rows])
         self.law = np.array([float(r["law_ratio"]) for r in rows])
         self.collapse = np.array([float(r["wl_ratio"]) for r in rows])
+        self.colour = np.array([float(r.get("law_colour_ratio", "nan")) for r in rows])
         self.gain = np.array([float(r["lobe_gain"]) for r in rows])
         self.null = np.array([float(r["share"]) == 0 for r in rows])
         groups = sorted({(r["table"], r["class"]) for r in rows})
@@ -156,7 +161,7 @@ class _Columns:
         self.kinds = sorted(set(self.kind))
 
     def detected(self, rule: Rule) -> np.ndarray:
-        ratio = rule.wavelength_ratio(self.law, self.collapse)
+        ratio = rule.wavelength_ratio(self.law, self.collapse, self.colour)
         return np.asarray(rule.diffraction(rule.margins(self.score, self.cells, ratio, self.gain)), dtype=bool)
 
 

@@ -63,7 +63,8 @@ class SampleAnalysis(Analysis):
         return tuple(float(x) for x in self.samples.wavelengths)
 
     def margins_raw(self) -> dict:
-        return self.rule.margins(float("nan"), 0, self.law_ratio, lobe_gain(self.penalised, self.specs))
+        ratio = self.rule.wavelength_ratio(self.law_ratio, float("nan"), self.law.colour_ratio)
+        return self.rule.margins(float("nan"), 0, ratio, lobe_gain(self.penalised, self.specs))
 
     def row(self) -> dict:
         s = self.spectral
@@ -92,7 +93,8 @@ def analyze_samples(samples, fits: dict, specs: dict, rule: Rule | None = None,
     chk = spectral_check(samples, Model(specs["full"], lambdas=lambdas), full.params,
                          cutoff_deg=80.0 if cutoff_deg is None else cutoff_deg)
     law = sample_law(fits, specs["full"], samples, cutoff_deg)
-    m = rule.margins(float("nan"), 0, law.ratio, lobe_gain(pen, specs))
+    m = rule.margins(float("nan"), 0, rule.wavelength_ratio(law.ratio, float("nan"), law.colour_ratio),
+                     lobe_gain(pen, specs))
     verdict = rule.verdict(m)
     free = fits.get("full_free")
     final = specs[final_key(verdict, sel, fits, specs)]

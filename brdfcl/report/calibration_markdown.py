@@ -9,16 +9,17 @@ from brdfcl.analysis import power
 from brdfcl.analysis.analyze import MIN_DECIDABLE, RULE
 from brdfcl.analysis.calibration_summary import FP_TARGET, LEGACY, Summary, detector, rule_text
 
-LABELS = {"gradient": "gradient test", "wavelength": "wavelength law", "collapse": "curve collapse",
+LABELS = {"gradient": "gradient test", "wavelength": "wavelength law", "colour": "wavelength law, colour",
+          "collapse": "curve collapse",
           "lobe": "lobe comparison", "verdict": "verdict"}
 STATISTIC = {"gradient": f"score (>= {MIN_DECIDABLE} decidable cells)", "wavelength": "-ln(law ratio)",
-             "collapse": "-ln(collapse ratio)", "lobe": "lobe gain"}
+             "colour": "-ln(law colour ratio)", "collapse": "-ln(collapse ratio)", "lobe": "lobe gain"}
 
 
 def threshold_text(test, thresholds) -> str:
     """A test's threshold in the units a reader knows (a ratio for the two ratio tests)."""
     t = thresholds[test]
-    if test in ("wavelength", "collapse"):
+    if test in power.RATIOS:
         return f"ratio <= {np.exp(-t):.3g}"
     return f"{'score' if test == 'gradient' else 'gain'} >= {t:.3g}"
 

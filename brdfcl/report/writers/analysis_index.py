@@ -20,7 +20,7 @@ from brdfcl.report.writers.base import ANALYSIS, Item, Job, Writer
 
 COLUMNS = ["material", "verdict", "verdict_by", "margin_gradient", "margin_wavelength", "margin_lobe",
            "margin_evidence", "selected_lobes", "grad_score_g", "grad_cells", "grad_band_deg_g",
-           "law_ratio", "collapse_ratio", "lambda_exponent",
+           "law_ratio", "law_colour_ratio", "collapse_ratio", "lambda_exponent",
            "rmse_log_full", "rmse_log_no_diffraction", "rmse_log_no_ct",
            "peak_share_diffraction", "rmse_log_full_free", "peak_share_free"]
 HEADS = {"verdict_by": "verdict hangs on", "margin_gradient": "margin gradient",
@@ -28,6 +28,7 @@ HEADS = {"verdict_by": "verdict hangs on", "margin_gradient": "margin gradient",
          "margin_evidence": "margin evidence", "selected_lobes": "lobes kept",
          "grad_score_g": "gradient score G", "grad_cells": "decided cells",
          "grad_band_deg_g": "band theta_h (deg) G", "law_ratio": "wavelength law ratio",
+         "law_colour_ratio": "law ratio, colour",
          "collapse_ratio": "collapse ratio",
          "lambda_exponent": "lambda exponent (samples)",
          "rmse_log_full": "rmse_log full", "rmse_log_no_diffraction": "rmse_log no diffraction",
