@@ -221,6 +221,19 @@ def test_rule_margins_and_verdicts():
     assert list(rule.diffraction(arrays)) == [True, False, True]                 # arrays as numbers
 
 
+def test_each_wavelength_test_reads_its_ratio():
+    """law, colour, the larger of the two (the law's alone where the colour is unknown), collapse."""
+    ratio = {t: Rule(wavelength_test=t).wavelength_ratio for t in ("law", "colour", "both", "collapse")}
+    assert [ratio[t](0.9, 2.0, 1.01) for t in ("law", "colour", "both", "collapse")] == [0.9, 1.01, 1.01, 2.0]
+    assert ratio["both"](1.2, 2.0, 0.5) == 1.2 and ratio["both"](0.9, 2.0, float("nan")) == 0.9
+    assert list(ratio["both"](np.array([0.9, 1.1]), 2.0, np.array([1.0, np.nan]))) == [1.0, 1.1]
+    both = Rule(wavelength_test="both", wavelength_decisive=0.99)
+    law = Rule(wavelength_test="law", wavelength_decisive=0.99)
+    # a law ratio below 1 that the colour does not share: evidence for the law, not for both
+    for rule, verdict in ((law, "diffraction"), (both, "none")):
+        assert rule.verdict(rule.margins(0.35, 200, rule.wavelength_ratio(0.88, 1.0, 1.008), 0.1)) == verdict
+
+
 @pytest.mark.skipif(os.environ.get("BRDFCL_FAST") == "1", reason="fits")
 def test_lobe_comparison_keeps_a_strong_halo_and_drops_it_for_a_metal():
     """Fits of the compared variants on two tiny-budget cases: the halo keeps its lobe, a GGX metal

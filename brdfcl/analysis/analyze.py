@@ -69,12 +69,12 @@ class Rule:
     it where it decides (the gradient test where at least ``min_cells`` cells decide: score below
     ``gradient_score``; the wavelength law: ratio at or above ``wavelength_veto``), and at least one
     of them is evidence for it (gradient score at least ``gradient_decisive``, or a ratio below
-    ``wavelength_decisive``).  The ratio is the wavelength law's, or the curve collapse's for the
-    rules before the law test, as ``wavelength_test`` says; with ``gradient_required`` the gradient
-    test must decide.  The defaults are the calibrated rule (the calibration compares it with the
-    rule before it, brdfcl.analysis.calibration_summary.LEGACY); scattered samples, which have no
-    gradient test, are judged by the same rule without that requirement
-    (brdfcl.analysis.samples.SAMPLE_RULE).
+    ``wavelength_decisive``).  The ratio is the wavelength law's, its colour ratio's, the larger of
+    the two, or the curve collapse's for the rules before the law test, as ``wavelength_test``
+    says; with ``gradient_required`` the gradient test must decide.  The defaults are the
+    calibrated rule (the calibration compares it with the rule before it,
+    brdfcl.analysis.calibration_summary.LEGACY); scattered samples, which have no gradient test,
+    are judged by the same rule without that requirement (brdfcl.analysis.samples.SAMPLE_RULE).
 
     ``margins`` gives each condition's signed distance to its threshold, positive on the side of
     diffraction: gradient ``score - gradient_score`` (NaN where too few cells decide), wavelength
@@ -90,11 +90,16 @@ class Rule:
     wavelength_veto: float = WAVELENGTH_VETO
     lobe_gain: float = LOBE_GAIN
     gradient_required: bool = GRADIENT_REQUIRED   # an undecided gradient test (too few cells) says none
-    wavelength_test: str = WAVELENGTH_TEST        # whose ratio: "law", "colour" (brdfcl.analysis.law), "collapse"
+    wavelength_test: str = WAVELENGTH_TEST        # whose ratio: "law", "colour", "both", "collapse"
 
     def wavelength_ratio(self, law_ratio, collapse_ratio, colour_ratio=float("nan")):
-        """The ratio this rule's wavelength thresholds read: the law's, its colour ratio's, or (the
-        rule before the law test, kept to compare) the curve collapse's."""
+        """The ratio this rule's wavelength thresholds read: the law's, its colour ratio's
+        (brdfcl.analysis.law), ``both``: the larger of the two (evidence only where the law holds
+        on the whole table and on the colour alone; either contradicts; the law's alone where the
+        colour ratio is unknown), or (the rule before the law test, kept to compare) the curve
+        collapse's."""
+        if self.wavelength_test == "both":
+            return np.fmax(law_ratio, colour_ratio)
         return {"collapse": collapse_ratio, "colour": colour_ratio}.get(self.wavelength_test, law_ratio)
 
     def margins(self, grad_score, grad_cells, wl_ratio, lobe_gain) -> dict:

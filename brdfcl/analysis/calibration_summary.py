@@ -31,7 +31,8 @@ def rule_text(rule: Rule) -> str:
     """A verdict rule in words."""
     g = (f">= {rule.min_cells} gradient cells decide and score >= {rule.gradient_score:g}" if rule.gradient_required
          else f"gradient score >= {rule.gradient_score:g} where >= {rule.min_cells} cells decide")
-    w = {"collapse": "curve-collapse ratio", "colour": "law colour ratio"}.get(rule.wavelength_test, "law ratio")
+    w = {"collapse": "curve-collapse ratio", "colour": "law colour ratio",
+         "both": "larger of the law ratio and its colour ratio"}.get(rule.wavelength_test, "law ratio")
     evidence = [f"gradient score >= {rule.gradient_decisive:g}"] if np.isfinite(rule.gradient_decisive) else []
     evidence += [f"{w} < {rule.wavelength_decisive:g}"] if rule.wavelength_decisive > 0 else []
     veto = f"{w} < {rule.wavelength_veto:g}" if np.isfinite(rule.wavelength_veto) else f"no {w} veto"

@@ -10,7 +10,7 @@ evidence for diffraction, and detects where it reaches a threshold:
   with each channel's wavelength fits the wide-angle region better than with one: law_ratio < 1 is
   a statistic > 0);
 * ``colour``: ``-ln(law_colour_ratio)``, the same comparison on the colour alone (each channel's
-  log residual minus the channels' mean), measured to be calibrated; no rule reads it yet;
+  log residual minus the channels' mean), where a misfit the channels share cancels;
 * ``collapse``: ``-ln(ratio)`` of the curve collapse (brdfcl.analysis.wavelength: the channels'
   binned curves collapse better against f_c than against f0), the law's picture, measured for
   comparison; no rule reads it;
@@ -135,9 +135,11 @@ GRID = {"gradient_score": (0.0, 0.1, 0.2, 0.3),
         "wavelength_veto": (1.02, 1.05, 1.1, 1.25, 1.5, 2.0, float("inf")),
         "lobe_gain": (-0.1, -0.05, -0.025, 0.0, 0.025, 0.05, 0.1),
         "gradient_required": (False, True),
-        "min_cells": (30, 100)}
+        "min_cells": (30, 100),
+        "wavelength_test": ("law", "colour", "both")}
 """The verdict rules ``choose_rule`` tries: round thresholds, so that the choice cannot follow
-single calibration cases (inf and 0: the test is never evidence, never contradicts)."""
+single calibration cases (inf and 0: the test is never evidence, never contradicts), on the law's
+ratio, on its colour ratio or on the larger of the two (Rule.wavelength_ratio)."""
 
 
 def _kind_rates(rows, rule, kinds):
