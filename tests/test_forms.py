@@ -204,22 +204,32 @@ def test_default_fit_all_chooses_among_the_default_forms(demo_db, tmp_path):
         doc = json.loads((tmp_path / "o" / f"{name}.json").read_text())
         assert doc["form"] in keys and set(doc["form_errors"]) == set(keys)
         assert doc["model"] == form_keys("diffuse+diffraction+ggx", DEFAULT_FORMS)[doc["form"]]
-        pen = {k: v["penalised"] for k, v in doc["form_errors"].items()}
+        pen = {k: v["penalised"] for k, v in doc["form_errors"].items() if "penalised" in v}
         assert doc["form"] == min(pen, key=pen.get)
-        # forms left out on the preview cells carry their error there, the others their full fit's
-        assert all(("rmse_log" in v) != ("rmse_preview" in v) for v in doc["form_errors"].values())
+        # forms left out on the preview cells carry their error there, the others their full fit's,
+        # and those not fitted at all say why
+        assert all(sum(k in v for k in ("rmse_log", "rmse_preview", "not_fitted")) == 1
+                   for v in doc["form_errors"].values())
         assert "rmse_log" in doc["form_errors"][doc["form"]]
         assert doc["errors"]["rmse_log"] == doc["form_errors"][doc["form"]]["rmse_log"]
         assert doc["options"]["forms"] == sorted(keys)
     plastic = json.loads((tmp_path / "o" / "synth-smooth-plastic.json").read_text())
     assert plastic["form"] == "gtr:dielectric"        # a dielectric: one index, not three F0
+    # the plastic's ABC tail is heavy (C ~ 2): no Beckmann form is fitted; the Beckmann metal's is
+    assert "tail exponent is below" in plastic["form_errors"]["beckmann:schlick"]["not_fitted"]
+    assert "not_fitted" in plastic["form_errors"]["beckmann:vcavity:schlick"]
+    rough = json.loads((tmp_path / "o" / "synth-rough-metal.json").read_text())
+    assert rough["form"] == "beckmann:schlick" and not any("not_fitted" in v for v in rough["form_errors"].values())
+    assert "form beckmann:schlick: fitted 1 material on the preview cells from the abc:schlick fits " \
+           "(no global search; 1 left out: the ABC fit's tail exponent is below 4)" in r.stderr
     # a material's seconds are its share of both forms' fits: together more than the chosen form's batch
     docs = [json.loads(p.read_text()) for p in (tmp_path / "o").glob("*.json")]
     assert all(d["seconds"] > 0 for d in docs)
     assert sum(d["seconds"] for d in docs) > plastic["stages"]["total"]
     from brdfcl.report.view.pages import Entry, comparison_page, material_page
     entry = Entry.from_document(plastic)              # the report shows the choice
-    assert "form <b>gtr:dielectric</b>" in material_page(entry, {}, tmp_path)
+    page = material_page(entry, {}, tmp_path)
+    assert "form <b>gtr:dielectric</b>" in page and "<i>not fitted: the ABC fit" in page
     assert "<th class='l'>form</th>" in comparison_page([entry], "fits", tmp_path)
     r = subprocess.run([sys.executable, "-m", "brdfcl.app.cli", "fit-all", str(src), "--out", str(tmp_path / "g"),
                         "--no-report", "--quiet", "--model", "diffuse+diffraction+ggx"], capture_output=True, text=True)
@@ -227,6 +237,31 @@ def test_default_fit_all_chooses_among_the_default_forms(demo_db, tmp_path):
     doc = json.loads((tmp_path / "g" / "synth-rough-metal.json").read_text())
     assert "form" not in doc and "forms" not in doc["options"]
     assert doc["model"] == "diffuse+diffraction:hp:none+ggx:smith:schlick"
+
+
+def test_a_beckmann_form_starts_only_from_abc_fits_with_a_light_tail():
+    """Beckmann is ABC's limit as C grows: an ABC fit whose tail exponent stays below BECKMANN_TAIL
+    starts no Beckmann form (on every reflection lobe); a form that starts from the Beckmann fits
+    needs only the materials that were fitted there to be successes."""
+    from types import SimpleNamespace
+
+    from brdfcl.optim.forms import BECKMANN_TAIL, abc_from_gtr, beckmann_from_abc, start_source, worth_starting
+    abc = Model("diffuse+abc:smith:schlick")
+    two = Model("diffuse+abc:smith:schlick+abc:smith:schlick")
+
+    def fit(model, **tails):
+        return SimpleNamespace(params={**{n: 1.0 for n in model.names}, **tails}, success=True)
+    heavy, light = fit(abc, **{"ct.C": BECKMANN_TAIL - 0.5}), fit(abc, **{"ct.C": 8.0})
+    assert worth_starting(beckmann_from_abc, [heavy, light], abc).tolist() == [False, True]
+    assert worth_starting(abc_from_gtr, [heavy, light], abc).tolist() == [True, True]       # no gate
+    mixed = fit(two, **{"ct.C": 8.0, "ct2.C": 1.0})
+    assert worth_starting(beckmann_from_abc, [mixed, fit(two, **{"ct.C": 8.0, "ct2.C": 6.0})], two).tolist() \
+        == [False, True]
+    done, skipped = SimpleNamespace(success=True), SimpleNamespace(success=False)
+    fitted = {"beckmann:schlick": [done, skipped]}
+    assert start_source("beckmann:vcavity:schlick", fitted, {"beckmann:schlick": np.array([True, False])})[0] \
+        == "beckmann:schlick"
+    assert start_source("beckmann:vcavity:schlick", fitted) is None       # every fit asked for: one failed
 
 
 def test_start_conversions_cover_every_reflection_lobe_and_keep_a_dielectric():

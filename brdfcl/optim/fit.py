@@ -181,27 +181,36 @@ class Fitter:
     def begin(self, names: list[str], t: Targets, full_data: np.ndarray, t0: float,
               on_result: Callable[[FitResult], None] | None = None,
               log: Callable[[str], None] = _quiet, start_values: np.ndarray | None = None,
-              ceiling: np.ndarray | None = None) -> Begun:
+              ceiling: np.ndarray | None = None, mats: np.ndarray | None = None) -> Begun:
         """`run` up to the full-table stage: the global search (or the warm start) and, with a
         preview set, Levenberg-Marquardt on it to convergence; `complete` finishes it.
         ``ceiling`` (n,): each material's rmse in the fit metric (penalties included) above which
-        its preview run stops early (brdfcl.optim.lm.BEHIND_AFTER; Status.BEHIND)."""
+        its preview run stops early (brdfcl.optim.lm.BEHIND_AFTER; Status.BEHIND).  ``mats``: with
+        a preview set and start values, the materials fitted on it (default: every one); the others
+        keep their start, with no loss (no estimate) and no success, and are not to be completed."""
         o, objective = self.opts, self.objective
+        n = len(names)
         batch = _Batch(self, names, full_data, t.full, on_result, t0)
         ranking = t.full if t.preview is None else t.preview    # a few starts need no full table
+        rows = np.arange(n) if mats is None else np.asarray(mats, dtype=int)
+        if mats is not None and (start_values is None or t.preview is None):
+            raise ValueError("a subset of materials is fitted on the preview cells from start values only")
         if start_values is None:
             found = global_search(objective, t.coarse, names=names, options=o, penalty=o.ct_peak_global, log=log)
-            start = pick_starts(objective, ranking, found, n_materials=len(names))
+            start = pick_starts(objective, ranking, found, n_materials=n)
         else:
-            found = start = _warm_start(objective, np.asarray(start_values, dtype=np.float64), len(names))
+            found = start = _warm_start(objective, np.asarray(start_values, dtype=np.float64), n)
         loss0 = start.fun
         if not np.isfinite(loss0).all():          # defaults taken: their loss was not evaluated
-            loss0 = objective.loss(ranking, start.x, np.arange(len(names)))
+            loss0 = np.full(n, np.nan)
+            if rows.size:
+                loss0[rows] = objective.loss(ranking, start.x[rows], rows)
         batch.started(found, loss0)
         x0, local, previewed = start.x, o, None
         if t.preview is not None:       # multi-resolution: converge on every n-th cell first
-            cap = None if ceiling is None else np.asarray(ceiling, dtype=np.float64) ** 2 * t.full.scale
-            previewed = _converged(refine(objective, t.preview, x0, options=o, log=log, ceiling=cap), len(names))
+            cap = None if ceiling is None else (np.asarray(ceiling, dtype=np.float64) ** 2 * t.full.scale)[rows]
+            steps = refine(objective, t.preview, x0[rows], options=o, log=log, ceiling=cap, mats=rows)
+            previewed = _converged(steps if rows.size else (), x0)
             batch.previewed(previewed)
             x0 = previewed.x
             local = replace(o, probe_dead_lobes=False, lm=replace(o.lm, max_iter=o.preview_final_iter))
@@ -311,17 +320,19 @@ def _finished_status(done: StageResult, previewed: StageResult | None, before: n
     return done
 
 
-def _converged(steps, n: int) -> StageResult:
-    """Every material's final row of a local stage run to its end (nothing handed out)."""
-    rows: list = [None] * n
+def _converged(steps, x0: np.ndarray) -> StageResult:
+    """Every material's final row of a local stage run to its end (nothing handed out); a material
+    the run did not hold keeps its start ``x0`` (n, k), with no loss, no evaluation and no success."""
+    n = len(x0)
+    x, fun, nfev = np.array(x0, dtype=np.float64), np.full(n, np.nan), np.zeros(n, dtype=int)
+    status, success, notes = [Status.START] * n, np.zeros(n, dtype=bool), ["not fitted in this form"] * n
     for step in steps:
         for j, i in enumerate(step.finished.mat):
-            rows[i] = step.finished.rows(np.array([j]))
-    x = np.concatenate([r.x for r in rows])
-    return StageResult(x, np.concatenate([r.fun for r in rows]), np.arange(n),
-                       np.array([int(r.nfev[r.mat[0]]) for r in rows]), [r.status[0] for r in rows],
-                       np.concatenate([r.success for r in rows]), "Levenberg-Marquardt on the preview cells",
-                       notes=[r.note(0) for r in rows])
+            r = step.finished.rows(np.array([j]))
+            x[i], fun[i], nfev[i], status[i], success[i], notes[i] = (r.x[0], r.fun[0], int(r.nfev[i]), r.status[0],
+                                                                      r.success[0], r.note(0))
+    return StageResult(x, fun, np.arange(n), nfev, status, success, "Levenberg-Marquardt on the preview cells",
+                       notes=notes)
 
 
 class _Batch:

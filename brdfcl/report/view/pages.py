@@ -177,6 +177,15 @@ def comparison_page(entries, title, rep) -> str:
     return "\n".join(h)
 
 
+def _form_cells(v: dict) -> str:
+    """A candidate form's error cells and the row's end: fitted on the full table, on the preview
+    cells only (italics), or not fitted (why)."""
+    if "not_fitted" in v:
+        return f"<td colspan='2'><i>not fitted: {html.escape(v['not_fitted'])}</i></td></tr>"
+    err = _num(v.get("rmse_log")) if "rmse_log" in v else _td(f"<i>{v['rmse_preview']:.4g}</i>", v["rmse_preview"])
+    return f"{err}{_num(v.get('penalised'))}</tr>"
+
+
 def material_page(e, images, rep) -> str:
     h = [_head(e.name), "<p><a href='index.html'>&larr; all materials</a></p>",
          f"<h1>{html.escape(e.name)}</h1>",
@@ -190,11 +199,9 @@ def material_page(e, images, rep) -> str:
                  f"{SCREEN:.0%} behind the best on the preview cells (every n-th cell) was not fitted on the "
                  "full table, its error there is shown in italics:</p><table><tr><th>form</th>"
                  "<th>rmse_log</th><th>penalised</th></tr>"
-                 + "".join(f"<tr><td>{html.escape(k)}</td>"
-                           + (_num(v.get("rmse_log")) if "rmse_log" in v else
-                              _td(f"<i>{v['rmse_preview']:.4g}</i>", v["rmse_preview"]))
-                           + f"{_num(v.get('penalised'))}</tr>"
-                           for k, v in sorted(e.form_errors.items(), key=lambda kv: kv[1].get("penalised", 0)))
+                 + "".join(f"<tr><td>{html.escape(k)}</td>" + _form_cells(v)
+                           for k, v in sorted(e.form_errors.items(),
+                                              key=lambda kv: kv[1].get("penalised", float("inf"))))
                  + "</table>")
     if e.flags:
         h.append("<h2>Flags</h2><ul>" + "".join(f"<li class='flag'>{html.escape(f)}</li>" for f in e.flags) + "</ul>")
