@@ -10,7 +10,9 @@ parameters is kept only where it earns them, and one with fewer (one refractive 
 an F0 per channel) wins ties.  A form that can start from another's fits (``STARTS``: GTR at
 gamma = 2 is GGX; ABC near its peak is a GTR) is refined from them, without a global search.  On a
 table every form is first fitted on the preview cells only, and one far behind a material's best
-there (``SCREEN``) is not fitted on its full table (`screen`).
+there (``SCREEN``) is not fitted on its full table (`screen`); a start may be taken only from some
+of its source's fits (``GATES``: Beckmann only from an ABC fit whose tail is light enough), the
+other materials not fitted in that form at all.
 
 ``DEFAULT_FORMS`` is what ``brdfcl fit-all`` chooses among when no model is given: the forms a
 default needs so that no development proxy is fitted worse than by the published SGD and ABC fits
