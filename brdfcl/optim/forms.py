@@ -443,7 +443,7 @@ class FormFitter:
                 sources[key] = b.starts()
             left = n - int(tried[key].sum())
             if left and src is not None:
-                why[key] = GATE_REASONS.get(src[1], f"not fitted in {src[0]}")
+                why[key] = GATE_REASONS.get(src[1], f"no {src[0]} fit to start from")
             notes = (["no global search"] if src else []) + ([f"{left} left out: {why[key]}"] if key in why else [])
             log(f"form {key}: fitted {count(n - left, 'material')}{'' if key in full else ' on the preview cells'}"
                 + (f" from the {src[0]} fits" if src else "") + (f" ({'; '.join(notes)})" if notes else ""))
