@@ -322,16 +322,16 @@ def _tail_light(params: dict, model: Model) -> bool:
     return all(params[f"{lobe}.C"] >= BECKMANN_TAIL for lobe in _lobes(model) if f"{lobe}.C" in params)
 
 
-GATES: dict[Callable, Callable[[dict, Model], bool]] = {beckmann_from_abc: _tail_light}
-"""Conversions that start a form only from some of their source's fits: ``gate(source params,
-source model)``; the other materials are not fitted in that form (on tables, where the preview
-cells decide which forms go on)."""
-GATE_REASONS = {beckmann_from_abc: f"the ABC fit's tail exponent is below {BECKMANN_TAIL:g}"}
+GATES: dict[Callable, tuple[Callable[[dict, Model], bool], str]] = {
+    beckmann_from_abc: (_tail_light, f"the ABC fit's tail exponent is below {BECKMANN_TAIL:g}")}
+"""Conversions that start a form only from some of their source's fits: (``gate(source params,
+source model)``, why a material it refuses is left out); the other materials are not fitted in
+that form (on tables, where the preview cells decide which forms go on)."""
 
 
 def worth_starting(how: Callable, source_results, source_model: Model) -> np.ndarray:
     """(n,) bool: the materials whose fits in the source form the conversion ``how`` starts from."""
-    gate = GATES.get(how)
+    gate = GATES[how][0] if how in GATES else None
     return np.array([gate is None or gate(r.params, source_model) for r in source_results], dtype=bool)
 
 
@@ -443,7 +443,7 @@ class FormFitter:
                 sources[key] = b.starts()
             left = n - int(tried[key].sum())
             if left and src is not None:
-                why[key] = GATE_REASONS.get(src[1], f"no {src[0]} fit to start from")
+                why[key] = GATES[src[1]][1] if src[1] in GATES else f"no {src[0]} fit to start from"
             notes = (["no global search"] if src else []) + ([f"{left} left out: {why[key]}"] if key in why else [])
             log(f"form {key}: fitted {count(n - left, 'material')}{'' if key in full else ' on the preview cells'}"
                 + (f" from the {src[0]} fits" if src else "") + (f" ({'; '.join(notes)})" if notes else ""))
