@@ -12,7 +12,7 @@ from brdfcl.model.compose import Model
 from brdfcl.model.lobes.cells import Cells
 from brdfcl.report.view import sphere
 from brdfcl.report.view.evaluate import Evaluator
-from brdfcl.report.view.lookup import rusinkiewicz, table_lookup
+from brdfcl.report.view.lookup import _interpolate, corners, interpolate, rusinkiewicz, table_lookup
 from brdfcl.report.view.material import curves, write_images
 from brdfcl.report.view.slices import slice_curves, slice_directions, slice_values, write_slices
 from brdfcl.report.view.sphere import DEFAULT_LIGHTS, render_model_sphere, render_table_sphere, sphere_normals
@@ -221,3 +221,29 @@ def test_lobes_add_up(metal):
     cv = slice_values(table, model, values, 30.0, np.arange(-80.0, 81.0, 10.0), lobes=True)
     assert set(cv) == {"measured", "fitted", "diffuse", "diffraction", "ct"}
     np.testing.assert_allclose(cv["diffuse"] + cv["diffraction"] + cv["ct"], cv["fitted"], rtol=1e-12)
+
+
+@pytest.mark.parametrize("interp", ["log", "linear"])
+def test_interpolate_matches_the_full_rule(interp):
+    """Points whose corners are all present take the quick path; the result is the full rule's
+    (missing corners left out, non-positive ones interpolated linearly) at every point."""
+    rng = np.random.default_rng(3)
+    wi = sphere._unit(0.3, 0.2, 0.9) * np.ones((4000, 1))
+    wo = rng.normal(size=(4000, 3))
+    wo[:, 2] = np.abs(wo[:, 2])
+    wo /= np.linalg.norm(wo, axis=1, keepdims=True)
+    index, weight = corners(wi, wo)
+    cells = np.unique(index)
+    brdf = rng.uniform(0.01, 2.0, size=(3, cells.size))
+    brdf[0, ::37] = np.nan                 # missing cells
+    brdf[1, ::53] = 0.0                    # a value the log cannot take
+    brdf[2, ::71] = -1.0
+    where = (np.searchsorted(cells, index), weight)
+    brdf[0, where[0][:, 0]] = np.nan       # every corner of the first point: NaN there
+    got = interpolate(brdf, where, interp)
+    want = _interpolate(brdf, *where, interp)
+    assert np.isnan(got[0, 0]) and np.isfinite(got[1:, 0]).all()
+    touched = (~np.isfinite(brdf) | (brdf <= 0)).any(0)[where[0]].any(0)
+    assert 0.05 < touched.mean() < 0.95     # both paths taken
+    np.testing.assert_array_equal(np.isnan(got), np.isnan(want))
+    np.testing.assert_allclose(got, want, rtol=1e-12, atol=0)

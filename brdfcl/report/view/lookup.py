@@ -30,11 +30,28 @@ def interpolate(brdf, where, interp="log"):
     """BRDF (3, n) of a (3, N_CELLS) array at the points of ``where = corners(wi, wo)``:
     ``linear``: trilinear over the neighbouring bin centres present (missing ones left out,
     weights renormalised), NaN where all are missing; ``log``: the same on log values (linear
-    where a neighbour is <= 0)."""
+    where a neighbour is <= 0).  Points whose corners are all present (and positive, for
+    ``log``) take one gather and a weighted sum; the others the rule in full (`_interpolate`)."""
     if interp not in ("linear", "log"):
         raise ValueError(f"interp '{interp}': nearest, linear or log")
     index, weight = where
     brdf = np.asarray(brdf)
+    with np.errstate(invalid="ignore"):
+        clean = brdf > 0 if interp == "log" else np.isfinite(brdf)
+    flagged = ~np.logical_and.reduce(list(clean))       # not all(0): slow over a short first axis
+    rough = np.flatnonzero(flagged[index].any(0)) if flagged.any() else np.zeros(0, np.int64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        table = np.log(np.where(clean, brdf, 1.0)) if interp == "log" else np.where(clean, brdf, 0.0)
+    out = np.einsum("ckn,kn->cn", np.take(table, index, axis=1), weight) / weight.sum(0)
+    if interp == "log":
+        out = np.exp(out)
+    if rough.size:
+        out[:, rough] = _interpolate(brdf, index[:, rough], weight[:, rough], interp)
+    return out
+
+
+def _interpolate(brdf, index, weight, interp):
+    """`interpolate`'s rule at every point: missing corners left out, weights renormalised."""
     v = np.take(brdf, index, axis=1)             # (C, 8, n): one gather for every corner
     ok = np.isfinite(v)
     w_ok = np.where(ok, weight, 0.0)
@@ -43,9 +60,7 @@ def interpolate(brdf, where, interp="log"):
         out = np.where(wsum > 0, np.einsum("ckn,ckn->cn", np.where(ok, v, 0.0), w_ok) / wsum, np.nan)
         if interp == "log":
             positive = ~np.any(ok & (v <= 0) & (weight != 0), axis=1)
-            # the log once per cell where there are fewer cells than corners looked up
-            log_v = np.take(np.log(np.where(brdf > 0, brdf, 1.0)), index, axis=1) if brdf.shape[1] < index.size \
-                else np.log(np.where(v > 0, v, 1.0))
+            log_v = np.log(np.where(v > 0, v, 1.0))
             mean_log = np.einsum("ckn,ckn->cn", log_v, w_ok) / wsum
             out = np.where(positive & (wsum > 0), np.exp(mean_log), out)
     return out
