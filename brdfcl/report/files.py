@@ -45,7 +45,7 @@ def write_exr(path: str | os.PathLike, channels: dict[str, np.ndarray], compress
     ``compression``: "zip" (smallest), "rle" (a third of zip's time, a fifth larger) or "none"."""
     # local: only the analysis and the report pages write EXR
     import OpenEXR
-    data = {k: np.ascontiguousarray(np.nan_to_num(v, nan=-1.0), dtype=np.float32) for k, v in channels.items()}
+    data = {k: _plane(v) for k, v in channels.items()}
     methods = {"zip": OpenEXR.ZIP_COMPRESSION, "rle": OpenEXR.RLE_COMPRESSION, "none": OpenEXR.NO_COMPRESSION}
     hdr = {"compression": methods[compression], "type": OpenEXR.scanlineimage}
     tmp = str(path) + ".tmp.exr"
@@ -53,6 +53,12 @@ def write_exr(path: str | os.PathLike, channels: dict[str, np.ndarray], compress
         with OpenEXR.File(hdr, data) as f:
             f.write(tmp)
         Path(tmp).replace(path)
+
+
+def _plane(v) -> np.ndarray:
+    """An image as OpenEXR takes it: C-contiguous float32, NaN as -1 (a copy only where needed)."""
+    v = np.ascontiguousarray(v, dtype=np.float32)
+    return v if np.isfinite(v).all() else np.nan_to_num(v, nan=-1.0)
 
 
 def png_bytes(rgb: np.ndarray, level: int = 1) -> bytes:
