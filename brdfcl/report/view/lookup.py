@@ -36,6 +36,9 @@ def interpolate(brdf, where, interp="log"):
         raise ValueError(f"interp '{interp}': nearest, linear or log")
     index, weight = where
     brdf = np.asarray(brdf)
+    if brdf.shape[1] > index.size:          # a whole table at a few points: only the cells they use
+        used = np.unique(index)
+        brdf, index = brdf[:, used], np.searchsorted(used, index)
     with np.errstate(invalid="ignore"):
         clean = brdf > 0 if interp == "log" else np.isfinite(brdf)
     flagged = ~np.logical_and.reduce(list(clean))       # not all(0): slow over a short first axis
