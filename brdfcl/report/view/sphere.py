@@ -294,8 +294,8 @@ def write_sphere_images(out_dir, name, spec, lights, measured, fitted, shown=Non
         write_png(png, side_by_side([meas_srgb, fit_srgb, to_srgb(np.abs(fit - meas), scale)]))
         captions[png.name] = f"{name}, {label}: " + sphere_caption(kind, d, meas, fit, spec, scale)
         layers = {"A": np.isfinite(fit[..., 0]).astype(np.float32)}
-        planes = np.stack([meas, fit, np.nan_to_num(fit - meas)]).astype(np.float32).transpose(0, 3, 1, 2)
-        planes = np.ascontiguousarray(np.nan_to_num(planes, nan=-1.0, copy=False))     # (layer, channel, h, w)
+        planes = np.ascontiguousarray(np.stack([meas, fit, np.nan_to_num(fit - meas)]).transpose(0, 3, 1, 2),
+                                      dtype=np.float32)                           # (layer, channel, h, w)
         for k, layer in enumerate(("measured", "fitted", "difference")):
             layers.update({f"{layer}.{c}": planes[k, i] for i, c in enumerate("RGB")})
         exr = out_dir / f"{name}-sphere-{label}.exr"
