@@ -16,7 +16,7 @@ from brdfcl.report.view.lookup import _interpolate, corners, interpolate, rusink
 from brdfcl.report.view.material import curves, write_images
 from brdfcl.report.view.slices import slice_curves, slice_directions, slice_values, write_slices
 from brdfcl.report.view.sphere import DEFAULT_LIGHTS, render_model_sphere, render_table_sphere, sphere_normals
-from brdfcl.report.view.svgplot import TOLERANCE_PX, _thin, _thin_runs
+from brdfcl.report.view.svgplot import TOLERANCE_PX, Figure, _thin, _thin_runs
 from brdfcl.report.view.views import plan
 
 NAME = "synth-smooth-metal"
@@ -213,6 +213,29 @@ def test_runs_thinned_together_keep_their_ends_and_the_tolerance():
         mine = keep[run_of == i]
         assert mine[0] == a and mine[-1] == b - 1
         assert b - a < 3 or _largest_offset(x[a:b], y[a:b], mine - a) < TOLERANCE_PX
+
+
+def test_markers_are_drawn_at_each_valid_point():
+    import xml.etree.ElementTree as ET
+    fig = Figure(1, 2)
+    x = np.linspace(-90, 90, 13)
+    y = np.exp(-x / 50)
+    y[[2, 7]] = [np.nan, 0.0]                     # not drawn
+    for c in range(2):
+        p = fig.panel(0, c, x_range=(-90, 90), y_range=(1e-2, 10))
+        p.markers(x, y, "#123456")
+        p.markers(x[:4], y[:4], "#654321", radius=3)
+    ns = {"s": "http://www.w3.org/2000/svg"}
+    root = ET.fromstring(fig.svg())
+    markers = {m.get("id"): m.find("s:circle", ns) for m in root.iter("{http://www.w3.org/2000/svg}marker")}
+    assert sorted((c.get("stroke"), c.get("r")) for c in markers.values()) == [("#123456", "22"), ("#654321", "30")]
+    paths = [p for p in root.iter("{http://www.w3.org/2000/svg}path") if p.get("marker-mid")]
+    assert len(paths) == 4 and all(p.get("marker-start") == p.get("marker-mid") == p.get("marker-end") for p in paths)
+    for p in paths:
+        assert p.get("marker-mid")[5:-1] in markers and p.get("stroke") == "none"
+        xy = np.array(p.get("d")[1:].split(), dtype=float).reshape(-1, 2) / 10
+        n = 11 if markers[p.get("marker-mid")[5:-1]].get("stroke") == "#123456" else 3
+        assert len(xy) == n and np.all(np.diff(xy[:, 0]) > 0)
 
 
 def test_lobes_add_up(metal):

@@ -83,8 +83,10 @@ class Figure:
                 oks.append(np.isfinite(y) & (y > 0))
                 lengths += [it[1].size for it in lines]
         paths = iter(_line_paths(xs, ys, oks, lengths))
+        markers: dict[tuple, str] = {}
         for (p, x0, y0), k in zip(placed, counts):
-            out += _panel(p, x0, y0, pw, ph, [next(paths) for _ in range(k)])
+            out += _panel(p, x0, y0, pw, ph, [next(paths) for _ in range(k)], markers)
+        out.insert(2, "<defs>" + "".join(_marker(name, color, r) for (color, r), name in markers.items()) + "</defs>")
         out.append(f"<g transform='translate(0,{height - legend_h})'>")
         out += legend
         out.append("</g></svg>")
@@ -151,8 +153,15 @@ def _axes(p, x0, y0, w, h):
     return px, py
 
 
-def _panel(p, x0, y0, w, h, line_paths):
-    """The panel's elements; ``line_paths``: per line item, in order, its path data (`_line_paths`)."""
+def _marker(name, color, r):
+    """A hollow circle of radius ``r`` pixels drawn at every vertex of a path in tenths of a pixel."""
+    return (f"<marker id='{name}' markerUnits='userSpaceOnUse' overflow='visible'>"
+            f"<circle r='{10 * r:g}' fill='none' stroke='{color}' stroke-width='8'/></marker>")
+
+
+def _panel(p, x0, y0, w, h, line_paths, markers):
+    """The panel's elements; ``line_paths``: per line item, in order, its path data (`_line_paths`);
+    ``markers``: {(colour, radius): marker id} of the figure, those this panel uses added."""
     px, py = _axes(p, x0, y0, w, h)
     la, lb = math.log10(p.y_range[0]), math.log10(p.y_range[1])
     out = [f"<text x='{x0 + w / 2:.0f}' y='{y0 - 6}' text-anchor='middle' font-size='12'>{html.escape(p.title)}</text>"]
@@ -176,13 +185,14 @@ def _panel(p, x0, y0, w, h, line_paths):
             for d in next(paths):
                 out.append(f"<path transform='scale(0.1)' d='{d}' fill='none' stroke='{color}' "
                            f"stroke-width='{10 * width:g}' stroke-linejoin='round'{extra}/>")
-        elif item[0] == "markers":
+        elif item[0] == "markers":          # one path through the points, a circle at each vertex
             _, x, y, color, r = item
             ok = np.isfinite(y) & (y > 0)
-            xy = np.stack([px(x[ok]), py(y[ok])], -1).ravel().tolist()
-            circle = f"<circle cx='%.1f' cy='%.1f' r='{r}' fill='none' stroke='{color}' stroke-width='0.8'/>\n"
+            xy = np.rint(np.stack([px(x[ok]), py(y[ok])], -1) * 10).astype(np.int64).ravel().tolist()
             if xy:
-                out.append((circle * (len(xy) // 2) % tuple(xy)).rstrip("\n"))
+                m = markers.setdefault((color, r), f"m{len(markers)}")
+                out.append(f"<path transform='scale(0.1)' d='M{' '.join(map(str, xy))}' fill='none' stroke='none' "
+                           f"marker-start='url(#{m})' marker-mid='url(#{m})' marker-end='url(#{m})'/>")
         else:
             lights.append(item)
     out.append("</g>")
