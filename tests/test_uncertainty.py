@@ -160,7 +160,7 @@ def test_flags_fire_on_non_physical_fit():
 def test_lobes_that_trade_places_are_flagged_where_both_give_a_share():
     """Two lobes' amplitudes correlated beyond TRADE_LIMIT in a channel: one line naming the lobes
     and channels, unless one of them gives under TRADE_SHARE of their albedo there."""
-    from brdfcl.optim.assessment import TRADE_LIMIT, TRADE_SHARE, trades
+    from brdfcl.optim.assessment import TRADE_LIMIT, TRADE_SHARE, traded, trades
     from brdfcl.optim.uncertainty import Uncertainty
     m = Model("diffuse+diffraction+ggx:smith:schlick")
     names = [n for n in m.names if n != "diffraction.a"]
@@ -175,6 +175,7 @@ def test_lobes_that_trade_places_are_flagged_where_both_give_a_share():
                            "correlation -1.000 in r)")
     both = {"diffuse": np.full((1, 3), 0.3), "diffraction": np.full((1, 3), 0.1), "ct": np.full((1, 3), 0.5)}
     assert len(trades(m, unc, both)) == 1
+    assert traded(["ct.alpha = 0.0001 at its lower bound", line]) == [("diffraction", "diffuse")]
     tiny = {**both, "diffraction": np.full((1, 3), 0.3 * TRADE_SHARE / 2)}
     assert trades(m, unc, tiny) == []
     assert trades(m, Uncertainty({n: 0.01 for n in names}, names, np.eye(len(names)), "test"), both) == []

@@ -4,6 +4,7 @@ a bound, and standard errors (brdfcl.optim.uncertainty), directional albedo
 from __future__ import annotations
 
 import logging
+import re
 from collections.abc import Sequence
 
 import numpy as np
@@ -100,10 +101,19 @@ def trades(model: Model, unc: Uncertainty, lobe_albedo: dict | None = None) -> l
     out = []
     for (la, lb), chans in found.items():
         worst = max(chans, key=lambda c: abs(c[1]))
-        out.append(f"lobes {la} and {lb} trade places in channel{'s' * (len(chans) > 1)} "
+        out.append(f"lobes {la} and {lb} {TRADED} in channel{'s' * (len(chans) > 1)} "
                    f"{', '.join(c for c, _ in chans)} (amplitude correlation {worst[1]:+.3f} in {worst[0]}): the data "
                    f"fix their sum there, not how it splits between them")
     return out
+
+
+TRADED = "trade places"
+
+
+def traded(flags) -> list[tuple[str, str]]:
+    """The pairs of lobes (prefixes) that `trades` names in a fit's ``flags``."""
+    found = (re.match(rf"lobes (\S+) and (\S+) {TRADED} ", f) for f in flags)
+    return [(m[1], m[2]) for m in found if m]
 
 
 def bounds_hit(model: Model, x: np.ndarray) -> list[str]:

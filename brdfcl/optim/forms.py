@@ -33,7 +33,7 @@ import numpy as np
 
 from brdfcl._words import count
 from brdfcl.model.compose import Model, ModelError, parse_lobe
-from brdfcl.optim.assessment import assess
+from brdfcl.optim.assessment import assess, traded
 from brdfcl.optim.fit import Begun, FitOptions, FitResult, Fitter, same_cells
 from brdfcl.optim.selection import penalised, select
 
@@ -119,6 +119,11 @@ def form_variants(spec: str, ndfs=NDF_FORMS, fresnels=FRESNEL_FORMS, shadowing: 
                                  f"(e.g. :vcavity)") from None
     return out
 
+
+DROP_TIE = 0.005
+"""A diffraction lobe whose amplitude trades places with the diffuse's (the assessment's flag) is
+left out where the fit without it has an rmse_log at most this much (relative) above: the data
+then do not tell a flat halo from the diffuse, and the diffuse alone is the simpler account."""
 
 SCREEN = 0.02
 """A form whose penalised error on the preview cells exceeds a material's least by more than this
@@ -383,7 +388,7 @@ class FormFitter:
     thrown away."""
 
     def __init__(self, opts: FitOptions, forms: dict[str, str], lambdas: Sequence[float] | None = None):
-        self.forms = dict(forms)
+        self.forms, self.lambdas = dict(forms), lambdas
         self.fitters = {k: Fitter(replace(opts, model=s), lambdas=lambdas) for k, s in self.forms.items()}
 
     def fit(self, measurements: Sequence, on_result: Callable[[FitResult, dict], None] | None = None,
@@ -483,6 +488,7 @@ class FormFitter:
             chosen.append(key)
             records.append(record)
         judged = self._assess(chosen, fitted, uploaded)
+        dropped = self._drop_traded(chosen, fitted, judged, upload, uploaded, log)
         out = []
         for i, key in enumerate(chosen):
             # the choice took every form's fit: its time and evaluations are the material's
@@ -491,10 +497,52 @@ class FormFitter:
                           for k in self.forms)
             nfev = sum(fitted[k][i].nfev if fitted[k][i] is not None else int(begun[k].batch.global_nfev[i])
                        for k in self.forms)
-            out.append((dataclasses.replace(r, seconds=seconds + judged[i][2], nfev=nfev,
-                                            stages={**r.stages, **judged[i][1]}, **judged[i][0]), records[i]))
+            if i in dropped:
+                r, records[i]["dropped"] = dropped[i]
+                out.append((dataclasses.replace(r, seconds=seconds + judged[i][2] + r.seconds, nfev=nfev + r.nfev),
+                            records[i]))
+            else:
+                out.append((dataclasses.replace(r, seconds=seconds + judged[i][2], nfev=nfev,
+                                                stages={**r.stages, **judged[i][1]}, **judged[i][0]), records[i]))
             if on_result is not None:
                 on_result(*out[-1])
+        return out
+
+    def _drop_traded(self, chosen: list[str], fitted: dict, judged: list, upload: Callable, uploaded: dict,
+                     log) -> dict[int, tuple[FitResult, dict]]:
+        """{row: (its fit without the diffraction lobe, assessed; what NAME.json records of it,
+        ``dropped``)} of the materials whose chosen fit's diffraction and diffuse lobes trade places
+        (`traded`) and whose form, fitted again without the diffraction lobe from that fit (no
+        global search), is at most DROP_TIE behind it in rmse_log."""
+        out: dict[int, tuple[FitResult, dict]] = {}
+        for key in dict.fromkeys(chosen):
+            f = self.fitters[key]
+            model = f.model
+            halo = {lb.prefix for lb in model.lobes if lb.role == "diffraction"}
+            diffuse = {lb.prefix for lb in model.lobes if lb.role == "diffuse"}
+            def trading(i: int, halo=halo, diffuse=diffuse) -> bool:
+                pairs = traded(judged[i][0].get("flags") or [])
+                return any({a, b} & halo and {a, b} & diffuse for a, b in pairs)
+            rows = np.array([i for i, k in enumerate(chosen) if k == key and fitted[k][i] is not None
+                             and fitted[k][i].success and trading(i)], dtype=int)
+            if not rows.size or any(n.split(".", 1)[0] in halo for n in f.opts.fixed):
+                continue
+            sub = model.submodel([lb for lb in model.lobes if lb.role != "diffraction"])
+            g = Fitter(replace(f.opts, model=sub.spec), lambdas=self.lambdas)
+            names, targets, data = uploaded[key] if same_cells(f, g) else upload(g)
+            start = np.tile(sub.defaults(), (len(names), 1))
+            for i in rows:
+                start[i] = [fitted[key][i].params[n] for n in sub.names]
+            b = g.begin(names, targets, data, time.perf_counter(), log=log, start_values=start,
+                        mats=rows if targets.preview is not None else None)
+            kept = 0
+            for i, r in zip(rows, g.complete(b, log=log, mats=rows)):
+                before, after = fitted[key][i].errors["rmse_log"], r.errors["rmse_log"]
+                if r.success and after <= (1 + DROP_TIE) * before:
+                    out[int(i)] = (r, {"lobes": sorted(halo), "rmse_log": after, "rmse_log_with": before})
+                    kept += 1
+            log(f"form {key}: {count(rows.size, 'material')} with a diffraction lobe trading places with the "
+                f"diffuse; left out of {kept} (at most {DROP_TIE:.1%} worse without it)")
         return out
 
     def _ceiling(self, key: str, begun: dict, n: int) -> np.ndarray | None:

@@ -19,7 +19,7 @@ from pathlib import Path
 
 from brdfcl._words import count
 from brdfcl.model.compose import Model, ModelError
-from brdfcl.optim.forms import SCREEN
+from brdfcl.optim.forms import DROP_TIE, SCREEN
 from brdfcl.optim.selection import PENALTY
 from brdfcl.report.files import writing
 from brdfcl.report.view.images import draw_images
@@ -74,6 +74,7 @@ class Entry:
     lambdas: tuple | None = None          # the channels' wavelengths (um); None: R, G, B
     form: str | None = None               # the reflection lobe's form, where chosen (brdfcl.optim.forms)
     form_errors: dict | None = None       # {form: {"rmse_log", "penalised"}} of every candidate
+    dropped: dict | None = None           # a lobe left out after the choice ({"lobes", "rmse_log", "rmse_log_with"})
     tabulated: bool = True                # a table (spheres and slices from it), not scattered samples
     truth: dict | None = None             # a synthetic material's known truth (brdfcl.model.synth.truth_of)
 
@@ -86,7 +87,7 @@ class Entry:
                    uncertainty=doc.get("uncertainty"),
                    albedo=doc.get("albedo"), flags=list(doc.get("flags") or []),
                    lambdas=tuple(lambdas) if lambdas else None, form=doc.get("form"),
-                   form_errors=doc.get("form_errors"), **kw)
+                   form_errors=doc.get("form_errors"), dropped=doc.get("dropped"), **kw)
 
     @classmethod
     def from_result(cls, res, table=None, **kw):
@@ -203,6 +204,13 @@ def material_page(e, images, rep) -> str:
                            for k, v in sorted(e.form_errors.items(),
                                               key=lambda kv: kv[1].get("penalised", float("inf"))))
                  + "</table>")
+    if e.dropped:
+        d = e.dropped
+        without, with_it = (d.get(k, float("nan")) for k in ("rmse_log", "rmse_log_with"))
+        h.append(f"<p>Left out after the choice: the {html.escape(', '.join(d.get('lobes', [])))} lobe, whose "
+                 f"amplitude traded places with the diffuse's; rmse_log {without:.4g} without it against "
+                 f"{with_it:.4g} with it (left out where at most {DROP_TIE:.1%} worse without it: the data do "
+                 "not tell the two apart, and the diffuse alone is the simpler account).</p>")
     if e.flags:
         h.append("<h2>Flags</h2><ul>" + "".join(f"<li class='flag'>{html.escape(f)}</li>" for f in e.flags) + "</ul>")
     h.append("<h2>Parameters</h2>" + _param_table(e))
