@@ -364,3 +364,20 @@ def test_the_default_fits_every_demo_material_to_its_truth(demo_db, tmp_path):
             if t == 0:
                 continue
             assert r.params[name] == pytest.approx(t, rel=0.02), (r.name, name, r.params[name], t)
+
+
+def test_a_traded_diffraction_lobe_is_left_out_only_where_asked(demo_db):
+    """The demo fabric's fit in the default forms has a flat diffraction lobe trading places with
+    its diffuse: FormFitter leaves it out and records why; with drop_traded=False (--select-lobes,
+    where the lobe comparison decides) the chosen fit keeps it and records nothing."""
+    from brdfcl.data.readers import read_measurement
+    from brdfcl.optim.forms import DROP_TIE
+    m = [read_measurement(demo_db / "synth-fabric.binary")]
+    specs = form_keys(FitOptions().model, DEFAULT_FORMS)
+    (res, record), = FormFitter(FitOptions(), specs).fit(m)
+    assert not Model(res.model).has_role("diffraction") and record["dropped"]["lobes"] == ["diffraction"]
+    assert record["dropped"]["rmse_log"] <= (1 + DROP_TIE) * record["dropped"]["rmse_log_with"]
+    assert res.errors["rmse_log"] == record["dropped"]["rmse_log"] and res.uncertainty is not None
+    (kept, record), = FormFitter(FitOptions(), specs, drop_traded=False).fit(m)
+    assert Model(kept.model).has_role("diffraction") and "dropped" not in record
+    assert kept.errors["rmse_log"] == record["form_errors"][record["form"]]["rmse_log"]

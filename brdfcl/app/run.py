@@ -144,11 +144,13 @@ def _fit_selected(run: Runner, todo: list[str], opts: FitOptions, batch: int, fo
 
 def _choose_forms(run: Runner, todo: list[str], opts: FitOptions, batch: int, forms: dict, rgb: bool) -> dict:
     """{model spec: (paths, {material: what NAME.json records of the choice})}: every material fitted
-    in every form (brdfcl.optim.forms.FormFitter, one read of each batch), the least penalised kept."""
+    in every form (brdfcl.optim.forms.FormFitter, one read of each batch), the least penalised kept;
+    no lobe left out there: the lobe comparison decides the lobes."""
     chosen: dict[str, tuple[list, dict]] = {}
     for group in run.read(todo, rgb):
         lambdas = tuple(group[0].wavelengths)
-        fitter = FormFitter(opts, forms, lambdas=None if lambdas == Model(opts.model).lambdas else lambdas)
+        fitter = FormFitter(opts, forms, lambdas=None if lambdas == Model(opts.model).lambdas else lambdas,
+                            drop_traded=False)
         for part in run.batches(group, batch):
             path_of = {m.name: m.path or m.name for m in part}
             for res, record in run.fit_batch(fitter, part, on_result=lambda r, rec: None):

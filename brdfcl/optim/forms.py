@@ -385,10 +385,13 @@ class FormFitter:
     """Fits a batch in every candidate form (``forms``: {key: model spec}, `form_keys`) and keeps
     each material's form of least penalised error; every form fits the same cells, read once.
     Only the chosen fit of a material is assessed (standard errors, albedo, flags): the others are
-    thrown away."""
+    thrown away.  ``drop_traded``: a chosen fit's diffraction lobe that trades places with the
+    diffuse is left out where the data allow (`_drop_traded`); off where another test decides the
+    lobes (--select-lobes)."""
 
-    def __init__(self, opts: FitOptions, forms: dict[str, str], lambdas: Sequence[float] | None = None):
-        self.forms, self.lambdas = dict(forms), lambdas
+    def __init__(self, opts: FitOptions, forms: dict[str, str], lambdas: Sequence[float] | None = None,
+                 drop_traded: bool = True):
+        self.forms, self.lambdas, self.drop_traded = dict(forms), lambdas, drop_traded
         self.fitters = {k: Fitter(replace(opts, model=s), lambdas=lambdas) for k, s in self.forms.items()}
 
     def fit(self, measurements: Sequence, on_result: Callable[[FitResult, dict], None] | None = None,
@@ -488,7 +491,7 @@ class FormFitter:
             chosen.append(key)
             records.append(record)
         judged = self._assess(chosen, fitted, uploaded)
-        dropped = self._drop_traded(chosen, fitted, judged, upload, uploaded, log)
+        dropped = self._drop_traded(chosen, fitted, judged, upload, uploaded, log) if self.drop_traded else {}
         out = []
         for i, key in enumerate(chosen):
             # the choice took every form's fit: its time and evaluations are the material's
