@@ -378,6 +378,12 @@ def test_a_traded_diffraction_lobe_is_left_out_only_where_asked(demo_db):
     assert not Model(res.model).has_role("diffraction") and record["dropped"]["lobes"] == ["diffraction"]
     assert record["dropped"]["rmse_log"] <= (1 + DROP_TIE) * record["dropped"]["rmse_log_with"]
     assert res.errors["rmse_log"] == record["dropped"]["rmse_log"] and res.uncertainty is not None
+    times = [t for t, _, _ in res.history]
+    assert times == sorted(times) and res.stages["without_lobes"] > 0
     (kept, record), = FormFitter(FitOptions(), specs, drop_traded=False).fit(m)
     assert Model(kept.model).has_role("diffraction") and "dropped" not in record
     assert kept.errors["rmse_log"] == record["form_errors"][record["form"]]["rmse_log"]
+    with pytest.MonkeyPatch.context() as mp:         # every refit rejected: its work still counted
+        mp.setattr("brdfcl.optim.forms.DROP_TIE", -1.0)
+        (tried, record), = FormFitter(FitOptions(), specs).fit(m)
+    assert "dropped" not in record and tried.errors == kept.errors and tried.nfev > kept.nfev

@@ -217,7 +217,7 @@ def test_runs_thinned_together_keep_their_ends_and_the_tolerance():
 
 def test_markers_are_drawn_at_each_valid_point():
     import xml.etree.ElementTree as ET
-    fig = Figure(1, 2)
+    fig = Figure(2, 2)
     x = np.linspace(-90, 90, 13)
     y = np.exp(-x / 50)
     y[[2, 7]] = [np.nan, 0.0]                     # not drawn
@@ -225,13 +225,17 @@ def test_markers_are_drawn_at_each_valid_point():
         p = fig.panel(0, c, x_range=(-90, 90), y_range=(1e-2, 10))
         p.markers(x, y, "#123456")
         p.markers(x[:4], y[:4], "#654321", radius=3)
+    lone = fig.panel(1, 0, x_range=(-90, 90), y_range=(1e-2, 10))
+    lone.markers(x[2:4], y[2:4], "#123456")         # one valid point: a path of two vertices there
     ns = {"s": "http://www.w3.org/2000/svg"}
     root = ET.fromstring(fig.svg())
     markers = {m.get("id"): m.find("s:circle", ns) for m in root.iter("{http://www.w3.org/2000/svg}marker")}
     assert sorted((c.get("stroke"), c.get("r")) for c in markers.values()) == [("#123456", "22"), ("#654321", "30")]
     paths = [p for p in root.iter("{http://www.w3.org/2000/svg}path") if p.get("marker-mid")]
-    assert len(paths) == 4 and all(p.get("marker-start") == p.get("marker-mid") == p.get("marker-end") for p in paths)
-    for p in paths:
+    assert len(paths) == 5 and all(p.get("marker-start") == p.get("marker-mid") == p.get("marker-end") for p in paths)
+    single = np.array(paths[-1].get("d")[1:].split(), dtype=float).reshape(-1, 2)
+    assert len(single) == 2 and np.array_equal(single[0], single[1])
+    for p in paths[:-1]:
         assert p.get("marker-mid")[5:-1] in markers and p.get("stroke") == "none"
         xy = np.array(p.get("d")[1:].split(), dtype=float).reshape(-1, 2) / 10
         n = 11 if markers[p.get("marker-mid")[5:-1]].get("stroke") == "#123456" else 3

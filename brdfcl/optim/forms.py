@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
+import logging
 import re
 import time
 from collections.abc import Callable, Sequence
@@ -37,6 +38,7 @@ from brdfcl.optim.assessment import assess, traded
 from brdfcl.optim.fit import Begun, FitOptions, FitResult, Fitter, same_cells
 from brdfcl.optim.selection import penalised, select
 
+_log = logging.getLogger("brdfcl")
 NDF_FORMS = ("ggx", "gtr", "beckmann")
 FRESNEL_FORMS = ("schlick", "dielectric")
 DEFAULT_FORMS = "gtr:dielectric,abc:schlick,gtr:schlick,beckmann:schlick,beckmann:vcavity:schlick"
@@ -491,7 +493,8 @@ class FormFitter:
             chosen.append(key)
             records.append(record)
         judged = self._assess(chosen, fitted, uploaded)
-        dropped = self._drop_traded(chosen, fitted, judged, upload, uploaded, log) if self.drop_traded else {}
+        dropped, refits = self._drop_traded(chosen, fitted, judged, upload, uploaded, log) \
+            if self.drop_traded else ({}, {})
         out = []
         for i, key in enumerate(chosen):
             # the choice took every form's fit: its time and evaluations are the material's
@@ -500,9 +503,15 @@ class FormFitter:
                           for k in self.forms)
             nfev = sum(fitted[k][i].nfev if fitted[k][i] is not None else int(begun[k].batch.global_nfev[i])
                        for k in self.forms)
+            if i in refits:                         # the refit without a traded lobe, kept or not
+                seconds, nfev = seconds + refits[i].seconds, nfev + refits[i].nfev
             if i in dropped:
-                r, records[i]["dropped"] = dropped[i]
-                out.append((dataclasses.replace(r, seconds=seconds + judged[i][2] + r.seconds, nfev=nfev + r.nfev),
+                d, records[i]["dropped"] = dropped[i]
+                offset = r.history[-1][0] if r.history else 0.0
+                history = list(r.history) + [(t + offset, st, e) for t, st, e in d.history]
+                out.append((dataclasses.replace(d, seconds=seconds + judged[i][2], nfev=nfev, history=history,
+                                                stages={**r.stages, **judged[i][1],
+                                                        "without_lobes": d.stages.get("total", d.seconds)}),
                             records[i]))
             else:
                 out.append((dataclasses.replace(r, seconds=seconds + judged[i][2], nfev=nfev,
@@ -512,41 +521,53 @@ class FormFitter:
         return out
 
     def _drop_traded(self, chosen: list[str], fitted: dict, judged: list, upload: Callable, uploaded: dict,
-                     log) -> dict[int, tuple[FitResult, dict]]:
-        """{row: (its fit without the diffraction lobe, assessed; what NAME.json records of it,
-        ``dropped``)} of the materials whose chosen fit's diffraction and diffuse lobes trade places
-        (`traded`) and whose form, fitted again without the diffraction lobe from that fit (no
-        global search), is at most DROP_TIE behind it in rmse_log."""
-        out: dict[int, tuple[FitResult, dict]] = {}
-        for key in dict.fromkeys(chosen):
-            f = self.fitters[key]
-            model = f.model
-            halo = {lb.prefix for lb in model.lobes if lb.role == "diffraction"}
-            diffuse = {lb.prefix for lb in model.lobes if lb.role == "diffuse"}
-            def trading(i: int, halo=halo, diffuse=diffuse) -> bool:
-                pairs = traded(judged[i][0].get("flags") or [])
-                return any({a, b} & halo and {a, b} & diffuse for a, b in pairs)
-            rows = np.array([i for i, k in enumerate(chosen) if k == key and fitted[k][i] is not None
-                             and fitted[k][i].success and trading(i)], dtype=int)
-            if not rows.size or any(n.split(".", 1)[0] in halo for n in f.opts.fixed):
+                     log) -> tuple[dict[int, tuple[FitResult, dict]], dict[int, FitResult]]:
+        """Materials whose chosen fit has diffraction lobes trading places with the diffuse
+        (`traded`): the form fitted again without those lobes, from that fit (no global search).
+        Returns ({row: (the fit without them, assessed; what NAME.json records, ``dropped``)} of
+        those at most DROP_TIE behind in rmse_log, {row: the refit} of every material refitted,
+        kept or not: its time and evaluations are the material's).  A refit that raises costs
+        nothing but itself (a warning)."""
+        kept: dict[int, tuple[FitResult, dict]] = {}
+        refits: dict[int, FitResult] = {}
+        groups: dict[tuple[str, tuple[str, ...]], list[int]] = {}
+        for i, key in enumerate(chosen):
+            r, model = fitted[key][i], self.fitters[key].model
+            if r is None or not r.success:
                 continue
-            sub = model.submodel([lb for lb in model.lobes if lb.role != "diffraction"])
-            g = Fitter(replace(f.opts, model=sub.spec), lambdas=self.lambdas)
-            names, targets, data = uploaded[key] if same_cells(f, g) else upload(g)
-            start = np.tile(sub.defaults(), (len(names), 1))
-            for i in rows:
-                start[i] = [fitted[key][i].params[n] for n in sub.names]
-            b = g.begin(names, targets, data, time.perf_counter(), log=log, start_values=start,
-                        mats=rows if targets.preview is not None else None)
-            kept = 0
-            for i, r in zip(rows, g.complete(b, log=log, mats=rows)):
+            role = {lb.prefix: lb.role for lb in model.lobes}
+            pairs = traded(judged[i][0].get("flags") or [])
+            flagged = sorted({a if role.get(a) == "diffraction" else b for a, b in pairs
+                              if {role.get(a), role.get(b)} == {"diffraction", "diffuse"}})
+            if flagged:
+                groups.setdefault((key, tuple(flagged)), []).append(i)
+        for (key, halos), rows_list in groups.items():
+            f, rows = self.fitters[key], np.array(rows_list, dtype=int)
+            if any(n.split(".", 1)[0] in halos for n in f.opts.fixed):
+                log(f"form {key}: {', '.join(halos)} kept where it trades places with the diffuse: "
+                    "a parameter of it is fixed")
+                continue
+            sub = f.model.submodel([lb for lb in f.model.lobes if lb.prefix not in halos])
+            try:
+                g = Fitter(replace(f.opts, model=sub.spec), lambdas=self.lambdas)
+                names, targets, data = uploaded[key] if same_cells(f, g) else upload(g)
+                start = np.tile(sub.defaults(), (len(names), 1))
+                for i in rows:
+                    start[i] = [fitted[key][i].params[n] for n in sub.names]
+                b = g.begin(names, targets, data, time.perf_counter(), log=log, start_values=start,
+                            mats=rows if targets.preview is not None else None)
+                done = g.complete(b, log=log, mats=rows)
+            except Exception as e:  # noqa: BLE001 - leaving a lobe out is optional: the chosen fits stand
+                _log.warning(f"brdfcl: form {key} without {', '.join(halos)} not fitted: {type(e).__name__}: {e}")
+                continue
+            for i, r in zip(rows, done):
+                refits[int(i)] = r
                 before, after = fitted[key][i].errors["rmse_log"], r.errors["rmse_log"]
                 if r.success and after <= (1 + DROP_TIE) * before:
-                    out[int(i)] = (r, {"lobes": sorted(halo), "rmse_log": after, "rmse_log_with": before})
-                    kept += 1
-            log(f"form {key}: {count(rows.size, 'material')} with a diffraction lobe trading places with the "
-                f"diffuse; left out of {kept} (at most {DROP_TIE:.1%} worse without it)")
-        return out
+                    kept[int(i)] = (r, {"lobes": list(halos), "rmse_log": after, "rmse_log_with": before})
+            log(f"form {key}: {count(rows.size, 'material')} with {', '.join(halos)} trading places with the "
+                f"diffuse; left out of {sum(int(i) in kept for i in rows)} (at most {DROP_TIE:.1%} worse without it)")
+        return kept, refits
 
     def _ceiling(self, key: str, begun: dict, n: int) -> np.ndarray | None:
         """(n,) the rmse on the preview cells above which form ``key``'s preview run stops (BEHIND,

@@ -189,6 +189,8 @@ def _panel(p, x0, y0, w, h, line_paths, markers):
             _, x, y, color, r = item
             ok = np.isfinite(y) & (y > 0)
             xy = np.rint(np.stack([px(x[ok]), py(y[ok])], -1) * 10).astype(np.int64).ravel().tolist()
+            if len(xy) == 2:                # a path of one point: not every renderer marks it
+                xy *= 2
             if xy:
                 m = markers.setdefault((color, r), f"m{len(markers)}")
                 out.append(f"<path transform='scale(0.1)' d='M{' '.join(map(str, xy))}' fill='none' stroke='none' "
