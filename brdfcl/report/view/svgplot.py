@@ -188,12 +188,12 @@ def _panel(p, x0, y0, w, h, line_paths, markers):
         elif item[0] == "markers":          # one path through the points, a circle at each vertex
             _, x, y, color, r = item
             ok = np.isfinite(y) & (y > 0)
-            xy = np.rint(np.stack([px(x[ok]), py(y[ok])], -1) * 10).astype(np.int64).ravel().tolist()
+            xy = _tenths(px(x[ok]), py(y[ok]))
             if len(xy) == 2:                # a path of one point: not every renderer marks it
                 xy *= 2
             if xy:
                 m = markers.setdefault((color, r), f"m{len(markers)}")
-                out.append(f"<path transform='scale(0.1)' d='M{' '.join(map(str, xy))}' fill='none' stroke='none' "
+                out.append(f"<path transform='scale(0.1)' d='{_moveto(xy)}' fill='none' stroke='none' "
                            f"marker-start='url(#{m})' marker-mid='url(#{m})' marker-end='url(#{m})'/>")
         else:
             lights.append(item)
@@ -233,11 +233,22 @@ def _line_paths(xs, ys, oks, lengths):
     if not starts.size:
         return out
     keep, run_of = _thin_runs(x, y, starts, stops)
-    xy = np.rint(np.stack([x[keep], y[keep]], -1) * 10).astype(np.int64).ravel().tolist()
+    xy = _tenths(x[keep], y[keep])
     bounds = (np.searchsorted(run_of, np.arange(starts.size + 1)) * 2).tolist()
     for line, a, b in zip(line_of.tolist(), bounds[:-1], bounds[1:]):
-        out[line].append("M" + " ".join(map(str, xy[a:b])))     # pairs after M
+        out[line].append(_moveto(xy[a:b]))
     return out
+
+
+def _tenths(x, y) -> list[int]:
+    """Pixel coordinates as the paths hold them: x0, y0, x1, y1, ... in tenths of a pixel (integers
+    are quick to write; a path drawn with transform='scale(0.1)')."""
+    return np.rint(np.stack([x, y], -1) * 10).astype(np.int64).ravel().tolist()
+
+
+def _moveto(xy) -> str:
+    """Path data through the points ``xy`` (`_tenths`): a moveto and implicit linetos."""
+    return "M" + " ".join(map(str, xy))
 
 
 def _thin(x, y, passes=4):
