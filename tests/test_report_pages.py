@@ -116,3 +116,34 @@ def test_cli_exports_a_finished_fit(run, tmp_path):
     r = subprocess.run([sys.executable, "-m", "brdfcl.app.cli", "export", str(fit), "--merl", str(fit)],
                        capture_output=True, text=True)
     assert r.returncode == 2 and "would overwrite" in r.stderr and fit.read_text().startswith("{")
+
+
+def test_cli_compares_with_published_scores(run, demo_db, tmp_path):
+    """``fit-all --published``: a rerun keeps the fits and its report names each scored material's
+    best published fit with the ratio of brdfcl's rmse_log to it; a bad file stops the command in
+    one line naming it."""
+    import json
+    out = tmp_path / "out"
+    shutil.copytree(run, out)
+    mine = json.loads((out / "synth-fabric.json").read_text())["errors"]["rmse_log"]
+    scores = tmp_path / "scores.csv"
+    scores.write_text("material,best_published,best_published_rmse_log\n"
+                      f"synth-fabric,abc_low2012_smooth_e2,{2 * mine!r}\n")
+    db = tmp_path / "db"
+    db.mkdir()
+    for n in NAMES:
+        (db / f"{n}.binary").symlink_to(demo_db / f"{n}.binary")
+    cli = [sys.executable, "-m", "brdfcl.app.cli", "fit-all", str(db),
+           "--model", "diffuse+diffraction+ggx", "--quiet", "--out", str(out)]
+    r = subprocess.run(cli + ["--published", str(scores)], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert "fitted 0 materials" in r.stdout and "2 already done" in r.stdout
+    index = (out / "report" / "index.html").read_text()
+    assert "abc_low2012_smooth_e2" in index and ">0.500<" in index
+    assert "1 material compared, median ratio 0.500" in index
+    assert "this fit's is 0.500 times that (closer)" in (out / "report" / "synth-fabric.html").read_text()
+    assert "Best published" not in (out / "report" / "synth-smooth-metal.html").read_text()
+    scores.write_text("material,score\n")
+    r = subprocess.run(cli + ["--published", str(scores)], capture_output=True, text=True)
+    assert r.returncode != 0 and r.stderr.strip().count("\n") == 0
+    assert str(scores) in r.stderr and "missing: best_published" in r.stderr

@@ -286,7 +286,7 @@ def cmd_fit_all(args):
         report = fit_all(source, args.out, opts, batch=args.batch, export=args.export_merl,
                          quiet=args.quiet, log=log, client=client, select_lobes=args.select_lobes,
                          free_peak=args.free_peak, overwrite=args.overwrite, pages=not args.no_report,
-                         rgb=args.rgb, forms=_forms(args))
+                         rgb=args.rgb, forms=_forms(args), published=args.published)
     except ResultsDiffer as e:          # in the command line's words, not the Python API's
         raise ValueError(e.message(OPTION_FLAGS, RESUME_PROCEED)) from e
     finally:
@@ -470,6 +470,10 @@ def build_parser():
                         "gtr:dielectric,abc:schlick, with NDF:SHADOWING:FRESNEL triples, e.g. "
                         "beckmann:vcavity:schlick, or every NDF with every Fresnel, e.g. ggx,gtr:schlick,dielectric; "
                         f"'none': the model as given (default: {DEFAULT_FORMS} unless --model or --fix is given)")
+    p.add_argument("--published", default=None, metavar="CSV",
+                   help="each material's best published fit and its rmse_log on the same table (columns "
+                        "material, best_published, best_published_rmse_log; bench/bench_fit.py --published "
+                        "writes them): the report names that fit and brdfcl's ratio to it")
     p.add_argument("--workers", type=int, default=0,
                    help="fit on a local Dask cluster of N workers (pip install brdfcl[cluster])")
     p.add_argument("--scheduler", default=None, help="fit on the Dask cluster at this address")

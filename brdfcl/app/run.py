@@ -33,6 +33,7 @@ from brdfcl.data.merl import material_name
 from brdfcl.model.compose import Model
 from brdfcl.optim.fit import FitOptions
 from brdfcl.optim.forms import FormFitter, form_keys, resolve
+from brdfcl.report.published import read_published
 from brdfcl.report.writers import FIT, IMPLEMENTED_WRITERS, Job, export_writers
 
 # This module's API, with the names of the runner and of brdfcl.data.inputs callers import from here.
@@ -43,7 +44,7 @@ __all__ = ["InputOverwriteError", "Models", "OPTION_FLAGS", "Progress", "Results
 
 def fit_all(source, out=None, options: FitOptions | None = None, batch=100, export: bool | str | Iterable[str] = False,
             quiet=True, log=None, client=None, select_lobes=False, free_peak=False, overwrite=False,
-            pages=False, rgb=False, forms: str | None = "default", **kw) -> RunReport:
+            pages=False, rgb=False, forms: str | None = "default", published=None, **kw) -> RunReport:
     """Fit every material of a database; write results to ``out`` if given.
 
     ``source``: folder, file or list of files.  ``options`` or keyword arguments
@@ -55,6 +56,8 @@ def fit_all(source, out=None, options: FitOptions | None = None, batch=100, expo
     options; results of other options raise ResultsDiffer before any work, or with
     ``overwrite`` are refitted and replaced.  ``pages``: write the run's report
     (``OUT/report/index.html``, brdfcl.report.view.pages) at the end (the CLI does unless --no-report).
+    ``published``: a CSV of each material's best published fit and its rmse_log
+    (brdfcl.report.published), read before any work; the report names that fit and the ratio.
 
     Every file a reader of brdfcl.data.readers reads is a measurement; those of the same channels
     (and, for tables, the same layout) share a batch (brdfcl.app.runner.Runner.read).  Spectral
@@ -72,6 +75,7 @@ def fit_all(source, out=None, options: FitOptions | None = None, batch=100, expo
     ``model`` keyword is a model asked for: it is fitted as given); None or ``"none"``: the model as
     given."""
     opts = options or FitOptions(**kw)
+    scores = read_published(published) if published is not None else {}
     forms = resolve(forms, opts, model_given="model" in kw)
     form_specs = form_keys(opts.model, forms) if forms is not None else None
     for spec in (form_specs or {}).values():     # a fixed parameter every form must have: before any work
@@ -81,7 +85,8 @@ def fit_all(source, out=None, options: FitOptions | None = None, batch=100, expo
     models = Models(opts, select_lobes=select_lobes, free_peak=free_peak, forms=form_specs)
     recorded = {**models.options, "export": bool(export), **({"rgb": True} if rgb else {})}
     run = Runner(source, out, FIT, log=log, quiet=quiet, options=recorded,
-                 exports=_exports(export), pages=pages, model=models.model, engine=models.engine)
+                 exports=_exports(export), pages=pages, model=models.model, engine=models.engine,
+                 published=scores)
     todo = resume(run, recorded, overwrite) if run.job is not None else run.paths
     if select_lobes:
         _fit_selected(run, todo, opts, batch, form_specs, rgb)

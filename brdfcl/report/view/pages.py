@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import html
 import os
+import statistics
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -22,6 +23,7 @@ from brdfcl.model.compose import Model, ModelError
 from brdfcl.optim.forms import DROP_TIE, SCREEN
 from brdfcl.optim.selection import PENALTY
 from brdfcl.report.files import writing
+from brdfcl.report.published import Published
 from brdfcl.report.view.images import draw_images
 from brdfcl.report.view.webgl import view_html
 
@@ -77,6 +79,7 @@ class Entry:
     dropped: dict | None = None           # a lobe left out after the choice ({"lobes", "rmse_log", "rmse_log_with"})
     tabulated: bool = True                # a table (spheres and slices from it), not scattered samples
     truth: dict | None = None             # a synthetic material's known truth (brdfcl.model.synth.truth_of)
+    published: Published | None = None    # its best published fit (brdfcl.report.published)
 
     @classmethod
     def from_document(cls, doc, table=None, **kw):
@@ -144,13 +147,16 @@ def comparison_page(entries, title, rep) -> str:
     analysed = any(e.verdict for e in entries)
     formed = any(e.form for e in entries)
     metrics = error_columns(entries)
+    compared = any(e.published for e in entries)
     heads = ["", "material"] + (["verdict"] if analysed else []) + (["form"] if formed else []) + metrics \
-        + list(groups) + ["status", "flags"]
+        + (list(PUBLISHED_HEADS) if compared else []) + list(groups) + ["status", "flags"]
     h = [_head(title), f"<h1>{html.escape(title)}</h1>",
          f"<p>{count(len(entries), 'material')}. Click a column header to sort; a material's name opens its page "
          "(spheres, slices, parameters with standard errors). Thumbnails: measured | fitted under the "
-         "key light. Per-channel parameters show r / g / b and sort by their mean.</p>",
-         "<table class='sortable'><thead><tr>"]
+         "key light. Per-channel parameters show r / g / b and sort by their mean.</p>"]
+    if compared:
+        h.append(_published_summary(entries))
+    h.append("<table class='sortable'><thead><tr>")
     h += [f"<th class='{'l' if i < 3 else ''}'>{html.escape(c)}</th>" for i, c in enumerate(heads)]
     h.append("</tr></thead><tbody>")
     for e in entries:
@@ -163,6 +169,8 @@ def comparison_page(entries, title, rep) -> str:
         if formed:
             cells.append(_td(html.escape(e.form or ""), e.form or "", "l"))
         cells += [_num(e.errors.get(m)) for m in metrics]
+        if compared:
+            cells += _published_cells(e)
         for g in groups:
             vals = [e.params[k] for k in _groups(e.params).get(g, [])]
             text = " / ".join(f"{v:.3g}" for v in vals) if len(vals) <= 3 else \
@@ -176,6 +184,34 @@ def comparison_page(entries, title, rep) -> str:
         h.append(f"<tr class='{html.escape(e.verdict or '')}'>" + "".join(cells) + "</tr>")
     h += ["</tbody></table>", f"<script>{SORT_JS}</script>"]
     return "\n".join(h)
+
+
+PUBLISHED_HEADS = ("best published fit", "rmse_log / published")
+
+
+def _published_cells(e) -> list[str]:
+    """The comparison page's cells of a material's best published fit: its name and brdfcl's
+    rmse_log over its (empty where the scores name no fit of the material)."""
+    p = e.published
+    if p is None:
+        return [_td("", ""), _td("", "")]
+    ratio = p.ratio(e.errors.get("rmse_log"))
+    shown = _td(f"<b>{ratio:.3f}</b>" if ratio is not None and ratio > 1 else f"{ratio:.3f}", ratio) \
+        if ratio is not None else _td("", "")
+    return [_td(html.escape(p.fit), p.fit, "l"), shown]
+
+
+def _published_summary(entries) -> str:
+    """One paragraph: against how many published fits, the median ratio, and where brdfcl's is worse."""
+    ratios = {e.name: r for e in entries
+              if e.published and (r := e.published.ratio(e.errors.get("rmse_log"))) is not None}
+    worse = sorted(n for n, r in ratios.items() if r > 1)
+    text = (f"<p>Against the best published fit of each material (the scores given with --published, "
+            f"rmse_log on the same table): {count(len(ratios), 'material')} compared")
+    if ratios:
+        text += (f", median ratio {statistics.median(ratios.values()):.3f} (below 1: brdfcl's fit is closer); "
+                 + (f"worse on {len(worse)} (in bold): {html.escape(', '.join(worse))}" if worse else "worse on none"))
+    return text + ".</p>"
 
 
 def _form_cells(v: dict) -> str:
@@ -211,6 +247,12 @@ def material_page(e, images, rep) -> str:
                  f"amplitude traded places with the diffuse's; rmse_log {without:.4g} without it against "
                  f"{with_it:.4g} with it (left out where at most {DROP_TIE:.1%} worse without it: the data do "
                  "not tell the two apart, and the diffuse alone is the simpler account).</p>")
+    if e.published is not None:
+        ratio = e.published.ratio(e.errors.get("rmse_log"))
+        h.append(f"<p>Best published fit of this material (the scores given with --published): "
+                 f"<b>{html.escape(e.published.fit)}</b>, rmse_log {e.published.rmse_log:.4g}"
+                 + (f"; this fit's is {ratio:.3f} times that ({'closer' if ratio < 1 else 'not closer'})"
+                    if ratio is not None else "") + ".</p>")
     if e.flags:
         h.append("<h2>Flags</h2><ul>" + "".join(f"<li class='flag'>{html.escape(f)}</li>" for f in e.flags) + "</ul>")
     h.append("<h2>Parameters</h2>" + _param_table(e))

@@ -77,6 +77,7 @@ class Job:
     model: Callable[..., Model] = Model           # the Model of a spec (and wavelengths; the run's carries --fix)
     engine: Callable[[str], Engine] | None = None  # a compiled Engine of a spec (to tabulate fits)
     log: Callable[[str], None] = _quiet
+    published: dict = field(default_factory=dict)  # material -> its best published fit (brdfcl.report.published)
     items: list[Item] = field(default_factory=list)   # finished so far, in order
 
     def __post_init__(self) -> None:

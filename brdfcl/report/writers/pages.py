@@ -56,7 +56,8 @@ class ReportPages(Writer):
         # local: the pages draw with matplotlib, which a run without them never loads
         from brdfcl.report.view.pages import Entry, write_report
         if job.kind == FIT:
-            entries = [Entry.from_document(d, path, tabulated=_tabulated(path), truth=truth_of(path))
+            entries = [Entry.from_document(d, path, tabulated=_tabulated(path), truth=truth_of(path),
+                                           published=job.published.get(d["material"]))
                        for d in read_results(job.out) if (path := job.tables.get(d["material"])) is not None]
             title = f"brdfcl fits in {job.out}"
         else:
