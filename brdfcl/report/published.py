@@ -53,7 +53,7 @@ def read_published(path) -> dict[str, Published]:
     missing = [c for c in COLUMNS if c not in header]
     if missing:
         raise PublishedError(f"{path}: published scores need the columns {', '.join(COLUMNS)}; "
-                        f"missing: {', '.join(missing)}")
+                             f"missing: {', '.join(missing)}")
     out: dict[str, Published] = {}
     for line, row in enumerate(rows, start=2):
         name, fit, text = ((row.get(c) or "").strip() for c in COLUMNS)
@@ -65,7 +65,7 @@ def read_published(path) -> dict[str, Published]:
             score = math.nan
         if not (math.isfinite(score) and score > 0):
             raise PublishedError(f"{path}: line {line}: best_published_rmse_log '{text[:40]}' of {name[:60]} "
-                            "is not a positive number")
+                                 "is not a positive number")
         if name in out:
             raise PublishedError(f"{path}: line {line}: {name[:60]} appears twice")
         out[name] = Published(fit or "(unnamed)", score)

@@ -191,7 +191,7 @@ PUBLISHED_HEADS = ("best published fit", "rmse_log / published")
 
 def _published_cells(e) -> list[str]:
     """The comparison page's cells of a material's best published fit: its name and brdfcl's
-    rmse_log over its (empty where the scores name no fit of the material)."""
+    rmse_log over the published one's (empty where the scores name no fit of the material)."""
     p = e.published
     if p is None:
         return [_td("", ""), _td("", "")]
