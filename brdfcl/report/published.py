@@ -48,7 +48,8 @@ def read_published(path) -> dict[str, Published]:
             rows = list(reader)
             header = reader.fieldnames or []
     except (OSError, UnicodeDecodeError, csv.Error) as e:
-        why = e.strerror if isinstance(e, OSError) and e.strerror else str(e).splitlines()[0][:120]
+        why = e.strerror if isinstance(e, OSError) and e.strerror else \
+            (str(e).splitlines() or [type(e).__name__])[0][:120]
         raise PublishedError(f"{path}: cannot read the published scores: {why}") from e
     missing = [c for c in COLUMNS if c not in header]
     if missing:

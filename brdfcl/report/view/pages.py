@@ -196,9 +196,10 @@ def _published_cells(e) -> list[str]:
     if p is None:
         return [_td("", ""), _td("", "")]
     ratio = p.ratio(e.errors.get("rmse_log"))
-    shown = _td(f"<b>{ratio:.3f}</b>" if ratio is not None and ratio > 1 else f"{ratio:.3f}", ratio) \
-        if ratio is not None else _td("", "")
-    return [_td(html.escape(p.fit), p.fit, "l"), shown]
+    if ratio is None:
+        return [_td(html.escape(p.fit), p.fit, "l"), _td("", "")]
+    text = f"{ratio:.3f}"
+    return [_td(html.escape(p.fit), p.fit, "l"), _td(f"<b>{text}</b>" if ratio > 1 else text, ratio)]
 
 
 def _published_summary(entries) -> str:
