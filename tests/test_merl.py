@@ -1,12 +1,15 @@
 import filecmp
+import os
 import time
 import tracemalloc
 
 import numpy as np
 import pytest
 
+from brdfcl.data import merl
 from brdfcl.data.merl import (
     FILE_SIZE,
+    MAP_BELOW,
     N_CELLS,
     SCALE,
     MerlError,
@@ -78,16 +81,20 @@ def test_bad_files_name_file_and_problem(tmp_path, content, message):
 
 
 @pytest.mark.parametrize("dtype", [np.float32, np.float64])
-def test_values_at_cells_equal_the_tables(tmp_path, dtype):
-    """read_merl_at (what fit-all reads through, one reused buffer) gives the table's values at
-    each index set, missing cells (negative, NaN, inf in any channel) NaN, in float32 or float64."""
+@pytest.mark.parametrize("many", [False, True], ids=["mapped", "read whole"])
+def test_values_at_cells_equal_the_tables(tmp_path, dtype, many):
+    """read_merl_at (what fit-all and the report read through) gives the table's values at each
+    index set, missing cells (negative, NaN, inf in any channel) NaN, in float32 or float64: a few
+    cells taken from the file mapped into memory, many from the file read whole into a reused
+    buffer."""
     rng = np.random.default_rng(3)
     raw = rng.uniform(0.0, 300.0, size=(3, N_CELLS))
     raw[0, 5], raw[1, 7], raw[2, 9] = -1.0, np.nan, np.inf
     with open(tmp_path / "m.binary", "wb") as f:
         f.write(np.array([90, 90, 180], "<i4").tobytes() + raw.astype("<f8").tobytes())
     t = read_merl(tmp_path / "m.binary")
-    sets = [np.arange(0, 50), np.sort(rng.choice(N_CELLS, 1000, replace=False))]
+    n = MAP_BELOW if many else 1000
+    sets = [np.arange(0, 50), np.sort(rng.choice(N_CELLS, n, replace=False))]
     outs = [np.zeros((3, ix.size), dtype) for ix in sets]
     buffer = np.full(3 * N_CELLS, 7.0)
     for _ in range(2):                                         # the buffer reused
@@ -97,8 +104,17 @@ def test_values_at_cells_equal_the_tables(tmp_path, dtype):
             np.testing.assert_array_equal(np.isnan(o), np.isnan(want))
             np.testing.assert_allclose(o, want, rtol=1e-7 if dtype == np.float32 else 1e-15)
     assert np.isnan(outs[0][:, [5, 7, 9]]).sum() == 3
-    with pytest.raises(ValueError, match="read buffer"):
-        read_merl_at(tmp_path / "m.binary", sets, outs, np.empty(10))
+    if many:
+        with pytest.raises(ValueError, match="read buffer"):
+            read_merl_at(tmp_path / "m.binary", sets, outs, np.empty(10))
+
+
+def test_file_cut_short_after_its_check_names_the_file(tmp_path, monkeypatch):
+    """A file that changes size between its check and its mapping: one line naming it."""
+    write_merl(tmp_path / "m.binary", np.full((3, N_CELLS), 0.5))
+    monkeypatch.setattr(merl, "_check_header", lambda path, f, size: os.truncate(path, FILE_SIZE - 8))
+    with pytest.raises(MerlError, match=r"m.binary: file changed while reading"):
+        read_merl_cells(tmp_path / "m.binary", np.arange(10))
 
 
 def test_all_missing_in_the_fitted_cells_is_an_error(tmp_path):

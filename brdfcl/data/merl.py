@@ -7,6 +7,7 @@ scale is the BRDF.  Negative, NaN and inf values mark missing cells.
 """
 from __future__ import annotations
 
+import mmap
 import os
 import threading
 from collections.abc import Iterator
@@ -26,6 +27,10 @@ SCALE = np.array([1.0 / 1500.0, 1.15 / 1500.0, 1.66 / 1500.0])
 HEADER = np.array([N_TH, N_TD, N_PD], dtype="<i4")
 FILE_SIZE = HEADER.nbytes + 3 * N_CELLS * 8
 CHANNELS = ("r", "g", "b")
+MAP_BELOW = N_CELLS // 4
+"""Index sets of fewer cells than this are gathered from the file mapped into memory rather than
+read whole: the report's 183,000 cells cost a third of a whole read (5-7 ms against 15-25 ms a
+table, 2-core AMD EPYC, page cache), while the fit's 910,000 cost about as much either way."""
 
 
 class MerlError(ValueError):
@@ -207,16 +212,41 @@ def _buffer() -> np.ndarray:
 
 def read_merl_at(path, indices, outs, buffer: np.ndarray | None = None) -> str:
     """Read a MERL file's BRDF (1/sr) at each index set straight into ``outs`` ((3, n_i) arrays,
-    float32 or float64), NaN where missing: no table-sized copy beyond the file's numbers (in
-    ``buffer``, see `read_numbers`).  Returns the material's name; MerlError (one line, naming the
+    float32 or float64), NaN where missing: no table-sized copy beyond the file's numbers (read
+    into ``buffer``, see `read_numbers`; for fewer than MAP_BELOW cells in all, taken from the file
+    mapped into memory instead, with no copy at all).  Returns the material's name; MerlError (one line, naming the
     file) for a file that cannot be used, or whose cells of the first index set are all missing."""
-    raw = read_numbers(path, buffer)
-    for o, idx in zip(outs, indices):
-        np.copyto(scaled_at(raw, idx, o), np.nan, where=missing(o))
+    if sum(np.size(i) for i in indices) < MAP_BELOW:
+        _gather_mapped(path, indices, outs)
+    else:
+        _gather(read_numbers(path, buffer), indices, outs)
     if len(indices) and np.size(indices[0]) and np.isnan(outs[0]).any(axis=0).all():
         raise MerlError(f"{os.fspath(path)}: every cell is missing within the fitted region "
                         f"(all values negative, NaN or inf)")
     return material_name(path)
+
+
+def _gather(raw, indices, outs) -> None:
+    for o, idx in zip(outs, indices):
+        np.copyto(scaled_at(raw, idx, o), np.nan, where=missing(o))
+
+
+def _gather_mapped(path, indices, outs) -> None:
+    """`_gather` from the file mapped into memory, read-only (header and size checked first):
+    only the pages holding the cells are touched, and nothing else is copied."""
+    path = os.fspath(path)
+    with _checked(path) as f:
+        m = mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ)
+    try:
+        if len(m) != FILE_SIZE:
+            raise MerlError(f"{path}: file changed while reading ({len(m)} bytes)")
+        _gather(np.frombuffer(m, dtype="<f8", count=3 * N_CELLS, offset=HEADER.nbytes).reshape(3, N_CELLS),
+                indices, outs)
+    finally:
+        try:
+            m.close()
+        except BufferError:       # a view still held by an exception's traceback: unmapped with it
+            pass
 
 
 def write_merl(path, table) -> None:
