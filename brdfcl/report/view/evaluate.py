@@ -22,16 +22,12 @@ CHUNK = 16                        # materials per launch: ~3 MB of results each
 class Fitted:
     """One material's fitted values: at the plan's ``cells`` (3, n), at its ``env_cells``
     (3, m), and per lobe prefix at the in-plane slices (3, k); in float32 from the engine (half
-    the bytes to send to an image worker), float64 from the reference."""
+    the bytes to send to an image worker; the images take them as they are), float64 from the
+    reference."""
 
     points: np.ndarray
     env: np.ndarray
     lobes: dict
-
-    def float64(self) -> Fitted:
-        """The same values in float64, as the images are computed."""
-        return Fitted(self.points.astype(np.float64), self.env.astype(np.float64),
-                      {k: v.astype(np.float64) for k, v in self.lobes.items()})
 
 
 def _concat(parts):

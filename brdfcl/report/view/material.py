@@ -68,7 +68,6 @@ def write_material(out_dir, name, values, model, fitted: Fitted, plan, measured:
     values; returns (paths, {image name: caption})."""
     if measured is None:
         measured = measure(out_dir, name, values, plan)
-    fitted = fitted.float64()
     fit = plan.images(fitted.points, fitted.env)
     lights = [(v.label, v.kind, v.light) for v in plan.spheres]
     paths, captions = write_sphere_images(out_dir, name, model.spec, lights, measured.images, fit, measured.shown)

@@ -197,8 +197,10 @@ def to_srgb(img, scale, background=0.18):
     """Display image (uint8): ``img * scale`` clipped to [0, 1], sRGB transfer function; outside
     the sphere (NaN in every channel) ``background`` (a display value), missing measurements
     magenta."""
-    x = np.fmin(np.fmax(img * scale, 0.0), 1.0)           # fmax, fmin: NaN to 0
-    out = np.take(_srgb_codes(), np.rint(x * _LUT_MAX).astype(np.int32))
+    x = np.multiply(img, scale * _LUT_MAX)
+    np.fmax(x, 0.0, out=x)                                # fmax, fmin: NaN to 0
+    np.fmin(x, _LUT_MAX, out=x)
+    out = np.take(_srgb_codes(), np.rint(x, out=x).astype(np.int32))
     nan = np.isnan(img)
     channels = [nan[..., c] for c in range(img.shape[-1])]   # not any(-1): slow over 3 values
     out[np.logical_or.reduce(channels)] = (255, 0, 255)

@@ -72,20 +72,32 @@ class Figure:
         placed = [(p, left + c * (pw + gap_x), top + 14 + r * (ph + gap_y))
                   for (r, c), p in sorted(self.panels.items())]
         xs, ys, oks, lengths, counts = [], [], [], [], []
-        for p, x0, y0 in placed:            # every line of the figure mapped and thinned together
+        mxs, mys, m_sizes, m_counts = [], [], [], []
+        for p, x0, y0 in placed:            # every line and marker of the figure mapped together
+            px, py = _axes(p, x0, y0, pw, ph)
             lines = [item for item in p.items if item[0] == "line"]
             counts.append(len(lines))
             if lines:
-                px, py = _axes(p, x0, y0, pw, ph)
                 y = np.concatenate([it[2] for it in lines])
                 xs.append(px(np.concatenate([it[1] for it in lines])))
                 ys.append(py(y))
                 oks.append(np.isfinite(y) & (y > 0))
                 lengths += [it[1].size for it in lines]
+            marks = [item for item in p.items if item[0] == "markers"]
+            m_counts.append(len(marks))
+            if marks:
+                y = np.concatenate([it[2] for it in marks])
+                ok = np.isfinite(y) & (y > 0)
+                mxs.append(px(np.concatenate([it[1] for it in marks])[ok]))
+                mys.append(py(y[ok]))
+                valid_before = np.concatenate([[0], np.cumsum(ok)])      # valid points of each item
+                m_sizes += np.diff(valid_before[np.cumsum([0] + [it[1].size for it in marks])]).tolist()
         paths = iter(_line_paths(xs, ys, oks, lengths))
+        points = iter(_split(_tenths(np.concatenate(mxs), np.concatenate(mys)), m_sizes) if mxs else [])
         markers: dict[tuple, str] = {}
-        for (p, x0, y0), k in zip(placed, counts):
-            out += _panel(p, x0, y0, pw, ph, [next(paths) for _ in range(k)], markers)
+        for (p, x0, y0), k, m in zip(placed, counts, m_counts):
+            out += _panel(p, x0, y0, pw, ph, [next(paths) for _ in range(k)], [next(points) for _ in range(m)],
+                          markers)
         out.insert(2, "<defs>" + "".join(_marker(name, color, r) for (color, r), name in markers.items()) + "</defs>")
         out.append(f"<g transform='translate(0,{height - legend_h})'>")
         out += legend
@@ -159,9 +171,10 @@ def _marker(name, color, r):
             f"<circle r='{10 * r:g}' fill='none' stroke='{color}' stroke-width='8'/></marker>")
 
 
-def _panel(p, x0, y0, w, h, line_paths, markers):
+def _panel(p, x0, y0, w, h, line_paths, marker_points, markers):
     """The panel's elements; ``line_paths``: per line item, in order, its path data (`_line_paths`);
-    ``markers``: {(colour, radius): marker id} of the figure, those this panel uses added."""
+    ``marker_points``: per markers item, in order, its valid points (`_tenths`); ``markers``:
+    {(colour, radius): marker id} of the figure, those this panel uses added."""
     px, py = _axes(p, x0, y0, w, h)
     la, lb = math.log10(p.y_range[0]), math.log10(p.y_range[1])
     out = [f"<text x='{x0 + w / 2:.0f}' y='{y0 - 6}' text-anchor='middle' font-size='12'>{html.escape(p.title)}</text>"]
@@ -175,7 +188,7 @@ def _panel(p, x0, y0, w, h, line_paths, markers):
         out.append(f"<line x1='{x:.1f}' y1='{y0}' x2='{x:.1f}' y2='{y0 + h}' stroke='#e6e6e6'/>"
                    f"<text x='{x:.1f}' y='{y0 + h + 13}' text-anchor='middle' font-size='10'>{t:g}</text>")
     out.append(f"<g clip-path='url(#{clip})'>")
-    paths = iter(line_paths)
+    paths, points = iter(line_paths), iter(marker_points)
     lights = []
     for item in p.items:
         if item[0] == "line":               # in tenths of a pixel: integers are quick to write
@@ -187,8 +200,7 @@ def _panel(p, x0, y0, w, h, line_paths, markers):
                            f"stroke-width='{10 * width:g}' stroke-linejoin='round'{extra}/>")
         elif item[0] == "markers":          # one path through the points, a circle at each vertex
             _, x, y, color, r = item
-            ok = np.isfinite(y) & (y > 0)
-            xy = _tenths(px(x[ok]), py(y[ok]))
+            xy = next(points)
             if len(xy) == 2:                # a path of one point: not every renderer marks it
                 xy *= 2
             if xy:
@@ -244,6 +256,12 @@ def _tenths(x, y) -> list[int]:
     """Pixel coordinates as the paths hold them: x0, y0, x1, y1, ... in tenths of a pixel (integers
     are quick to write; a path drawn with transform='scale(0.1)')."""
     return np.rint(np.stack([x, y], -1) * 10).astype(np.int64).ravel().tolist()
+
+
+def _split(xy: list, sizes) -> list[list[int]]:
+    """`_tenths`' list of points cut into consecutive parts of ``sizes`` points."""
+    ends = np.cumsum(sizes).tolist()
+    return [xy[2 * a:2 * b] for a, b in zip([0] + ends[:-1], ends)]
 
 
 def _moveto(xy) -> str:

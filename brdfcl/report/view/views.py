@@ -80,7 +80,7 @@ class EnvView:
     cells: np.ndarray
     operator: dict
     kind = "env"
-    columns: np.ndarray | None = None     # where ``cells`` are in the plan's env_cells
+    columns: np.ndarray | None = None     # where ``cells`` are in the plan's env_cells; None: all of them, in order
 
     @cached_property
     def weights(self) -> tuple:
@@ -99,7 +99,7 @@ class EnvView:
     def image(self, at_env):
         """Radiance (size, size, 3) from BRDF values at the plan's ``env_cells`` (3, m); NaN off
         the sphere and where less than sphere.MIN_VALID_SHARE of the light meets a value."""
-        values = at_env[:, self.columns].astype(np.float32)
+        values = np.asarray(at_env if self.columns is None else at_env[:, self.columns], dtype=np.float32)
         out = np.full((self.size, self.size, 3), np.nan)
         good = np.isfinite(values)
         rad = np.empty((int(self.inside.sum()), 3))
@@ -165,7 +165,8 @@ class Plan:
         envs = [v for v in self.spheres if isinstance(v, EnvView)]
         self.env_cells = _unique_cells([v.cells for v in envs])
         for v in envs:
-            v.columns = np.searchsorted(self.env_cells, v.cells)
+            same = v.cells.size == self.env_cells.size and np.array_equal(v.cells, self.env_cells)
+            v.columns = None if same else np.searchsorted(self.env_cells, v.cells)
         self.turntable, wi_t, wo_t, m = [], [], [], 0
         for deg in turntable_deg:
             t = np.radians(deg)
