@@ -30,7 +30,9 @@ CHANNELS = ("r", "g", "b")
 MAP_BELOW = N_CELLS // 4
 """Index sets of fewer cells than this are gathered from the file mapped into memory rather than
 read whole: the report's 183,000 cells cost a third of a whole read (5-7 ms against 15-25 ms a
-table, 2-core AMD EPYC, page cache), while the fit's 910,000 cost about as much either way."""
+table, 2-core AMD EPYC, page cache), while the fit's 910,000 cost about as much either way.  A
+file cut short in place during those few milliseconds ends the process (SIGBUS) where a read
+would have raised; a file replaced by a new one (`write_merl`, most tools) cannot."""
 
 
 class MerlError(ValueError):
