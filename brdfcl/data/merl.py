@@ -215,9 +215,10 @@ def _buffer() -> np.ndarray:
 def read_merl_at(path, indices, outs, buffer: np.ndarray | None = None) -> str:
     """Read a MERL file's BRDF (1/sr) at each index set straight into ``outs`` ((3, n_i) arrays,
     float32 or float64), NaN where missing: no table-sized copy beyond the file's numbers (read
-    into ``buffer``, see `read_numbers`; for fewer than MAP_BELOW cells in all, taken from the file
-    mapped into memory instead, with no copy at all).  Returns the material's name; MerlError (one line, naming the
-    file) for a file that cannot be used, or whose cells of the first index set are all missing."""
+    into ``buffer``, see `read_numbers`; for fewer than MAP_BELOW cells in all, taken from the
+    file mapped into memory instead, with no copy at all).  Returns the material's name;
+    MerlError (one line, naming the file) for a file that cannot be used, or whose cells of the
+    first index set are all missing."""
     if sum(np.size(i) for i in indices) < MAP_BELOW:
         _gather_mapped(path, indices, outs)
     else:
@@ -229,6 +230,8 @@ def read_merl_at(path, indices, outs, buffer: np.ndarray | None = None) -> str:
 
 
 def _gather(raw, indices, outs) -> None:
+    """The BRDF of the stored numbers ``raw`` (3, N_CELLS) at each index set into ``outs``, NaN
+    where missing."""
     for o, idx in zip(outs, indices):
         np.copyto(scaled_at(raw, idx, o), np.nan, where=missing(o))
 
