@@ -116,3 +116,25 @@ def test_each_material_has_its_share_of_the_batch_time(demo_db):
     assert all(r.stages["total"] == total for r in res)
     assert sum(r.seconds for r in res) == pytest.approx(total, rel=0.05)
     assert all(0 < r.seconds < total for r in res)
+
+
+def test_finite_weights_count_each_finite_value_once():
+    """The loss's normalisation: the weights of the finite values summed over channels, for a place
+    that materials share and for one of their own, with NaN, inf and -inf among the values."""
+    from brdfcl.data.geometry import TABLE
+    from brdfcl.device.engine import Place
+    from brdfcl.device.cellsets import select_cells
+    from brdfcl.optim.fit import finite_weights
+
+    index = select_cells(80.0)[::97]
+    shared, own = Place(TABLE, index), Place(TABLE, index[::2], 4.0)
+    rng = np.random.default_rng(3)
+    values = [rng.random((3, index.size)).astype(np.float32) for _ in range(3)] + \
+        [rng.random((3, index[::2].size)).astype(np.float32)]
+    values[1][0, 5], values[1][2, 5], values[1][1, 9] = np.nan, np.inf, -np.inf
+    values[3][2, 0] = np.nan
+    places = [shared, shared, shared, own]
+    got = finite_weights(values, places, 80.0)
+    want = [np.sum(np.isfinite(v) * p.weights(80.0)) for v, p in zip(values, places)]
+    np.testing.assert_allclose(got, want, rtol=1e-12)
+    assert got[1] < got[0]

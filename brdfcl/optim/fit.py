@@ -132,7 +132,7 @@ class Fitter:
 
         cut = self.opts.cutoff_deg
         full_places, full_data = stage(0)
-        scale = np.array([np.sum(np.isfinite(v[0]) * p[0].weights(cut)) for v, p in zip(values, places)])
+        scale = finite_weights([v[0] for v in values], [p[0] for p in places], cut)
         sets = []
         for j in range(n_sets):
             at, values_j = stage(j)
@@ -271,6 +271,25 @@ class StartPoint:
 
     params: dict
     success: bool
+
+
+def finite_weights(values: Sequence[np.ndarray], places: Sequence[Place], cutoff_deg: float | None) -> np.ndarray:
+    """Each material's sum of its cells' weights over the channels where its value is finite (the
+    loss's normalisation: a fit's rmse is sqrt(loss / this)); ``values[k]`` (C, n) at the cells of
+    ``places[k]``.  A place that several materials share has its weights made once, and a
+    material without a missing value (one sum finds it: NaN and inf carry through) costs that sum."""
+    made: dict[int, tuple[np.ndarray, float]] = {}
+    out = np.empty(len(values))
+    for k, (v, p) in enumerate(zip(values, places)):
+        if id(p) not in made:
+            w = p.weights(cutoff_deg)
+            made[id(p)] = (w, float(w.sum()))
+        w, total = made[id(p)]
+        if np.isfinite(np.sum(v)):
+            out[k] = v.shape[0] * total
+        else:
+            out[k] = float(np.isfinite(v).sum(axis=0, dtype=np.uint16) @ w)
+    return out
 
 
 def same_cells(a: Fitter, b: Fitter) -> bool:
