@@ -31,10 +31,13 @@ P(t) = alpha^2 / (alpha^2 + t^2) gives its closed form back, (sqrt(1 + alpha^2 t
 """
 from __future__ import annotations
 
+import hashlib
 import itertools
 from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
+
+from brdfcl.model.terms.shadowing.series_table import Box, CoefficientTable
 
 if TYPE_CHECKING:
     import sympy as sp
@@ -97,7 +100,9 @@ SERIES_FROM_DEG = 88.0
 HOST_NODES = 24
 """Nodes of the rule the host evaluates at the series' nodes (``density_weights``)."""
 MEMO = 1 << 15
-"""Parameter vectors whose coefficients a series Lambda keeps (``SeriesLambda.host_consts``)."""
+"""Parameter vectors outside its table whose coefficients a series Lambda keeps (``SeriesLambda.host_consts``)."""
+TABLE_VERSION = 1
+"""Part of a series table's cache key: changed with how series_table builds a table."""
 
 _COS_LO = float(np.cos(np.radians(SERIES_FROM_DEG)))
 _X = np.cos(np.pi * (np.arange(SERIES_TERMS) + 0.5) / SERIES_TERMS)        # Chebyshev nodes in x
@@ -141,9 +146,10 @@ class SeriesLambda:
     the integrand once at every pair of series node and rule node, as one array, and sums the rule
     by a matrix product: a few dozen numpy operations per launch, whatever HOST_NODES is."""
 
-    def __init__(self, name: str, inputs: tuple[str, ...], base, integrand, origin: str):
+    def __init__(self, name: str, inputs: tuple[str, ...], base, integrand, origin: str, box: Box | None = None):
         from brdfcl.model.terms.base import Term
-        self.base, self.inputs = base, tuple(inputs)
+        self.base, self.inputs, self.box = base, tuple(inputs), box
+        self._table: CoefficientTable | None = None
         self.host = tuple(f"c{k}" for k in range(SERIES_TERMS))
         self.integrand = Term("shadowing", f"{name}_integrand", (), lambda **p: integrand(outgoing().tan2, **p),
                               uses=self.inputs, origin=origin)
@@ -157,13 +163,44 @@ class SeriesLambda:
         """({c_k: value}, {c_k: {input: derivative}}), float64, for inputs of any (equal) shape
         (c_k: the coefficient of x^k).
 
-        The rule is most of a launch's host time for these models, and a fit asks again for many
-        parameter vectors it has had (a search's optima ranked on other cells, a preview's result
-        on the full table, the assessment and the report of the final fits): each vector's
-        coefficients are kept (`MEMO` at most, the oldest dropped first) and computed once."""
+        The rule is most of a launch's host time for these models: inside ``box`` the coefficients
+        come from its table instead (`table`, a tenth of the rule's time); outside, a fit asks again
+        for many parameter vectors it has had (a search's optima ranked on other cells, a preview's
+        result on the full table, the assessment and the report of the final fits), so each of
+        those vectors' coefficients is kept (`_remembered`) and computed once."""
         at = np.broadcast_arrays(*(np.asarray(inputs[k], dtype=np.float64) for k in self.inputs))
         shape = at[0].shape
         rows = np.stack([a.ravel() for a in at], axis=1)
+        table = np.empty((rows.shape[0], 1 + len(self.inputs), SERIES_TERMS))
+        tab = self.table()
+        inside = tab.covers(rows) if tab is not None else np.zeros(rows.shape[0], dtype=bool)
+        if inside.any():
+            table[inside] = tab(rows[inside])
+        rest = np.flatnonzero(~inside)
+        if rest.size:
+            table[rest] = self._remembered(rows[rest])
+        table = table.reshape(*shape, 1 + len(self.inputs), SERIES_TERMS)
+        return ({c: table[..., 0, k] for k, c in enumerate(self.host)},
+                {c: {p: table[..., 1 + j, k] for j, p in enumerate(self.inputs)} for k, c in enumerate(self.host)})
+
+    def table(self) -> CoefficientTable | None:
+        """The coefficients tabulated over ``box`` (series_table), made once per machine from the
+        rule and read once per process; None without a box."""
+        if self.box is None:
+            return None
+        if self._table is None:
+            from brdfcl._cache import generated_arrays
+            from brdfcl.model.terms.keys import formula_key
+            key = hashlib.sha1(f"{formula_key(self.integrand)}\0{self.box.key()}\0{SERIES_TERMS}\0{HOST_NODES}"
+                               f"\0{SERIES_FROM_DEG}\0{TABLE_VERSION}".encode()).hexdigest()[:24]
+            arrays = generated_arrays(f"series-{self.integrand.name}", key,
+                                      lambda: CoefficientTable.build(self.box, self._coefficients))
+            self._table = CoefficientTable(self.box, arrays)
+        return self._table
+
+    def _remembered(self, rows):
+        """`_coefficients` of rows the table does not cover: each vector's kept (`MEMO` at most,
+        the oldest dropped first) and computed once."""
         keys = [r.tobytes() for r in rows]
         memo = self._memo
         new: dict[bytes, int] = {}
@@ -171,17 +208,15 @@ class SeriesLambda:
             if k not in memo and k not in new:
                 new[k] = i
         made = dict(zip(new, self._coefficients(rows[list(new.values())]))) if new else {}
-        table = np.stack([memo[k] if k in memo else made[k] for k in keys])
-        table = table.reshape(*shape, 1 + len(self.inputs), SERIES_TERMS)
+        out = np.stack([memo[k] if k in memo else made[k] for k in keys])
         memo.update(made)
         if len(memo) > MEMO:
             for k in list(itertools.islice(memo, len(memo) - MEMO // 2)):
                 del memo[k]
-        return ({c: table[..., 0, k] for k, c in enumerate(self.host)},
-                {c: {p: table[..., 1 + j, k] for j, p in enumerate(self.inputs)} for k, c in enumerate(self.host)})
+        return out
 
     def __getstate__(self):
-        return {**self.__dict__, "_memo": {}}          # what it keeps stays in its process
+        return {**self.__dict__, "_memo": {}, "_table": None}     # what it keeps stays in its process
 
     def _coefficients(self, rows):
         """(m, 1 + inputs, SERIES_TERMS): the x^k coefficients and their derivatives by each input

@@ -18,6 +18,7 @@ The error against the exact Lambda (the hemisphere integral of D's own reference
 bench/lambda_gtr.py (bench/results/lambda_gtr.md), over the whole box alpha 1e-4..1, gamma 1.05..4.
 (Heitz 2014, Understanding the masking-shadowing function, eq. 17 for Lambda and 72 / 99 for G.)
 """
+from brdfcl.model.terms.shadowing.series_table import Box
 from brdfcl.model.terms.shadowing.smith import CITE, SeriesLambda, density_integrand, register_series
 from brdfcl.model.terms.shadowing.smith_ggx import lambda_ggx
 
@@ -43,7 +44,11 @@ def gtr_integrand(u, alpha, gamma):
     return on * density_integrand(u, density)
 
 
+TABLE_BOX = Box(lo=(1e-4, 1.05), hi=(0.9, 4.0), log=(True, False), nodes=(128, 60))
+"""Where the coefficients are tabulated (series_table): GTR's box but alpha above 0.9, where they
+change too fast near alpha = 1 for the grid (the rule serves there); gamma every 0.05, so that
+gamma = 2 (GGX, correction 0) is a node line."""
 LAMBDA_GTR = SeriesLambda("smith_gtr", ("alpha", "gamma"), lambda d, alpha, gamma: lambda_ggx(d, alpha),
-                          gtr_integrand, __name__)
+                          gtr_integrand, __name__, box=TABLE_BOX)
 CITE_GTR = CITE + "; Burley 2012 (GTR)"
 register_series(LAMBDA_GTR, "gtr", CITE_GTR)
