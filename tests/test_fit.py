@@ -122,8 +122,8 @@ def test_finite_weights_count_each_finite_value_once():
     """The loss's normalisation: the weights of the finite values summed over channels, for a place
     that materials share and for one of their own, with NaN, inf and -inf among the values."""
     from brdfcl.data.geometry import TABLE
-    from brdfcl.device.engine import Place
     from brdfcl.device.cellsets import select_cells
+    from brdfcl.device.engine import Place
     from brdfcl.optim.fit import finite_weights
 
     index = select_cells(80.0)[::97]
