@@ -28,6 +28,9 @@ default angle cut-off of a fit; beyond it the integrands' features crowd into b 
 underestimates Lambda: the relative error of G1 = 1/(1 + Lambda) grows to ~1e-2 at 85 deg, ~0.1 at
 88 deg and ~1 at 89.5 deg (for the roughest lobes, where G1 itself is small).  GGX's
 P(t) = alpha^2 / (alpha^2 + t^2) gives its closed form back, (sqrt(1 + alpha^2 tau^2) - 1) / 2.
+
+A series given a ``box`` of its inputs takes its coefficients there from a table of the rule
+(series_table.py), a tenth of the rule's time, within series_table.MAX_G1_ERROR of it in G1.
 """
 from __future__ import annotations
 
