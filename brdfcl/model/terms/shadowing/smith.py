@@ -104,8 +104,6 @@ HOST_NODES = 24
 """Nodes of the rule the host evaluates at the series' nodes (``density_weights``)."""
 MEMO = 1 << 15
 """Parameter vectors outside its table whose coefficients a series Lambda keeps (``SeriesLambda.host_consts``)."""
-TABLE_VERSION = 1
-"""Part of a series table's cache key: changed with how series_table builds a table."""
 
 _COS_LO = float(np.cos(np.radians(SERIES_FROM_DEG)))
 _X = np.cos(np.pi * (np.arange(SERIES_TERMS) + 0.5) / SERIES_TERMS)        # Chebyshev nodes in x
@@ -194,8 +192,8 @@ class SeriesLambda:
         if self._table is None:
             from brdfcl._cache import generated_arrays
             from brdfcl.model.terms.keys import formula_key
-            key = hashlib.sha1(f"{formula_key(self.integrand)}\0{self.box.key()}\0{SERIES_TERMS}\0{HOST_NODES}"
-                               f"\0{SERIES_FROM_DEG}\0{TABLE_VERSION}".encode()).hexdigest()[:24]
+            # the integrand's key follows every module of the terms (this one and series_table too)
+            key = hashlib.sha1(f"{formula_key(self.integrand)}\0{self.box.key()}".encode()).hexdigest()[:24]
             arrays = generated_arrays(f"series-{self.integrand.name}", key,
                                       lambda: CoefficientTable.build(self.box, self._coefficients))
             self._table = CoefficientTable(self.box, arrays)
